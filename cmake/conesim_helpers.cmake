@@ -1,0 +1,26 @@
+# conesim_library(NAME folder DEPS ...): one static library per folder, sources globbed.
+function(conesim_library name)
+  cmake_parse_arguments(ARG "" "" "DEPS" ${ARGN})
+  file(GLOB_RECURSE sources CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cpp)
+  list(FILTER sources EXCLUDE REGEX "/app/")
+  add_library(${name} STATIC ${sources})
+  target_include_directories(${name} PUBLIC ${PROJECT_SOURCE_DIR})
+  target_link_libraries(${name} PUBLIC ${ARG_DEPS})
+endfunction()
+
+# conesim_tests(folder DEPS ...): one GoogleTest executable per *_test.cpp in tests/<folder>.
+function(conesim_tests folder)
+  cmake_parse_arguments(ARG "" "" "DEPS;LABELS" ${ARGN})
+  file(GLOB test_sources CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/${folder}/*_test.cpp)
+  foreach(src IN LISTS test_sources)
+    get_filename_component(stem ${src} NAME_WE)
+    set(target test_${folder}_${stem})
+    add_executable(${target} ${src})
+    target_link_libraries(${target} PRIVATE ${ARG_DEPS} GTest::gtest_main GTest::gmock)
+    target_compile_definitions(${target} PRIVATE
+      CONESIM_TEST_DATA="${PROJECT_SOURCE_DIR}/tests/data"
+      CONESIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+    gtest_discover_tests(${target} TEST_PREFIX "${folder}." DISCOVERY_TIMEOUT 60
+      PROPERTIES LABELS "${folder}")
+  endforeach()
+endfunction()

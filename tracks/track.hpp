@@ -1,0 +1,86 @@
+#pragma once
+// The track: cones with stable ids and classes, the start pose, time-keeping gates and the
+// ordered boundary lanes from which the centre line is derived.
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/cone.hpp"
+#include "core/geometry.hpp"
+
+namespace conesim::tracks {
+
+using core::ConeClass;
+using core::Pose2;
+using core::Vec2;
+
+/// The four FSG dynamic events.
+enum class EventType { kSkidpad, kAcceleration, kAutocross, kTrackdrive };
+
+/// Event name as used on the command line and in scenarios: skidpad, acceleration, ...
+std::string_view to_string(EventType e);
+
+/// Parses an event name; nullopt when it is not one of the four.
+std::optional<EventType> event_from_string(std::string_view name);
+
+/// One cone of the layout.
+struct Cone {
+  /// Stable id: unique within the track, kept through export and import (EUFS CSV).
+  int id = 0;
+  ConeClass cls = ConeClass::kUnknown;
+  /// Position of the cone's base centre in the track frame, metres.
+  Vec2 position = Vec2::Zero();
+  /// Position covariance when the source gives one (surveyed layouts), m^2.
+  std::optional<Eigen::Matrix2d> covariance;
+};
+
+/// A time-keeping gate: the line between two photocell posts.
+struct Gate {
+  Vec2 left = Vec2::Zero();
+  Vec2 right = Vec2::Zero();
+};
+
+/// A cone layout with everything the referee, the driver and the evaluator need.
+struct Track {
+  /// A short name, usually the file stem.
+  std::string name;
+  /// Every cone, each with a unique id.
+  std::vector<Cone> cones;
+  /// Pose the car starts from (rear axle centre is not implied: it is the reference point the
+  /// importer gives, the front wing for fssim files).
+  Pose2 start;
+  /// Time-keeping gates in the order they are passed; the first starts the timing.
+  std::vector<Gate> timing_gates;
+  /// Left (blue) boundary: cone ids in driving order.
+  std::vector<int> left_lane;
+  /// Right (yellow) boundary: cone ids in driving order.
+  std::vector<int> right_lane;
+  /// True for a closed circuit (autocross, trackdrive): the last lane cone joins the first.
+  bool closed = false;
+  /// The event the layout was made for, when the source says so or it is recognised.
+  std::optional<EventType> event;
+  /// The driving line: derived from the lanes, or given by the layout (skidpad's figure eight).
+  /// Closed circuits do not repeat the first point at the end.
+  std::vector<Vec2> centre_line;
+  /// Non-fatal oddities met while reading (a duplicate cone dropped, a guessed start pose).
+  std::vector<std::string> warnings;
+
+  /// The cone with this id; throws std::out_of_range when there is none.
+  const Cone& cone(int id) const;
+  /// Positions of the cones of a lane, in order.
+  std::vector<Vec2> lane_points(const std::vector<int>& lane) const;
+  /// Number of cones of a class.
+  int count(ConeClass c) const;
+  /// The next free cone id.
+  int next_id() const;
+};
+
+/// Builds the centre line from the ordered lanes: each left cone is paired with the nearest
+/// point of the right boundary polyline and vice versa, the midpoints are ordered along the
+/// lanes and resampled every spacing_m. Returns an empty line when either lane is empty.
+std::vector<Vec2> derive_centre_line(const Track& track, double spacing_m = 1.0);
+
+}  // namespace conesim::tracks
