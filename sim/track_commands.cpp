@@ -1,0 +1,187 @@
+#include "sim/track_commands.hpp"
+
+#include <cmath>
+#include <ostream>
+#include <sstream>
+
+#include "core/error.hpp"
+#include "sim/gnuplot.hpp"
+#include "tracks/fsg_layouts.hpp"
+#include "tracks/generator.hpp"
+#include "tracks/io.hpp"
+#include "tracks/rules.hpp"
+
+namespace conesim::sim {
+
+namespace fs = std::filesystem;
+using tracks::EventType;
+using tracks::Track;
+
+namespace {
+
+// rounds a figure for JSON output (millimetres are plenty for layout figures)
+double round_mm(double v) { return std::round(v * 1000.0) / 1000.0; }
+
+}  // namespace
+
+int track_validate(const std::vector<fs::path>& files, std::optional<EventType> event,
+                   bool strict, std::ostream& out, std::ostream& err) {
+  int status = kExitOk;
+  for (const fs::path& file : files) {
+    // read: a malformed file is reported and the others are still checked
+    Track track;
+    try {
+      track = tracks::read_track(file);
+    } catch (const core::InputError& e) {
+      err << e.what() << "\n";
+      status = kExitBadInput;
+      continue;
+    }
+    for (const std::string& w : track.warnings) err << file.string() << ": warning: " << w << "\n";
+
+    // check the rules of the event
+    const EventType ev = event.value_or(tracks::infer_event(track));
+    const auto violations = tracks::check_rules(track, ev);
+    out << file.string() << ": " << track.cones.size() << " cones, "
+        << tracks::to_string(ev) << ", " << violations.size() << " rule violation"
+        << (violations.size() == 1 ? "" : "s") << "\n";
+    for (const auto& v : violations) out << file.string() << ": " << v.to_string() << "\n";
+    if (strict && !violations.empty() && status == kExitOk) status = kExitViolations;
+  }
+  return status;
+}
+
+nlohmann::json track_info(const Track& track, std::optional<EventType> event) {
+  const EventType ev = event.value_or(tracks::infer_event(track));
+  const tracks::TrackStats stats = tracks::compute_stats(track);
+  nlohmann::json cones = nlohmann::json::object();
+  for (core::ConeClass c : {core::ConeClass::kBlue, core::ConeClass::kYellow,
+                          core::ConeClass::kOrangeSmall, core::ConeClass::kOrangeBig,
+                          core::ConeClass::kUnknown}) {
+    cones[std::string(core::to_string(c))] = track.count(c);
+  }
+  nlohmann::json violations = nlohmann::json::array();
+  for (const auto& v : tracks::check_rules(track, ev)) violations.push_back(v.to_string());
+  return {
+      {"name", track.name},
+      {"event", std::string(tracks::to_string(ev))},
+      {"closed", track.closed},
+      {"cones", cones},
+      {"length_m", round_mm(stats.length_m)},
+      {"min_width_m", round_mm(stats.min_width_m)},
+      {"max_spacing_m", round_mm(stats.max_spacing_m)},
+      {"min_radius_m", round_mm(stats.min_radius_m)},
+      {"start", {{"x", round_mm(track.start.x)}, {"y", round_mm(track.start.y)},
+                 {"yaw", round_mm(track.start.yaw)}}},
+      {"violations", violations},
+      {"warnings", track.warnings},
+  };
+}
+
+Track make_event_track(EventType event, uint64_t seed) {
+  switch (event) {
+    case EventType::kSkidpad:
+      return tracks::make_skidpad();
+    case EventType::kAcceleration:
+      return tracks::make_acceleration();
+    case EventType::kAutocross:
+    case EventType::kTrackdrive:
+      break;
+  }
+  tracks::GeneratorParams params;
+  params.event = event;
+  return tracks::generate_circuit(seed, params);
+}
+
+void write_track_atomically(const Track& track, const fs::path& out) {
+  // same extension, so the writer picks the same format
+  const fs::path partial = out.parent_path() / (".partial-" + out.filename().string());
+  try {
+    tracks::write_track(track, partial);
+    fs::rename(partial, out);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove(partial, ec);
+    throw;
+  }
+}
+
+void plot_track(const Track& track, std::optional<EventType> event, const fs::path& out_png) {
+  using core::ConeClass;
+  const EventType ev = event.value_or(tracks::infer_event(track));
+
+  // data blocks: cones per class, lanes, centre line, start arrow, gates, violations
+  std::vector<PlotData> data;
+  const std::pair<ConeClass, const char*> classes[] = {
+      {ConeClass::kBlue, "blue"},
+      {ConeClass::kYellow, "yellow"},
+      {ConeClass::kOrangeSmall, "orange_small"},
+      {ConeClass::kOrangeBig, "orange_big"},
+      {ConeClass::kUnknown, "unknown"}};
+  std::ostringstream plots;
+  const char* colours[] = {"#1f4fd8", "#e6c200", "#ff7f0e", "#d94800", "#808080"};
+  int i = 0;
+  for (const auto& [cls, name] : classes) {
+    PlotData d{name, {}};
+    for (const auto& c : track.cones)
+      if (c.cls == cls) d.rows.push_back({c.position.x(), c.position.y()});
+    if (!d.rows.empty()) {
+      plots << (plots.tellp() > 0 ? ", " : "") << "$" << name << " using 1:2 with points pt 7 ps "
+            << (cls == ConeClass::kOrangeBig ? 1.6 : 1.0) << " lc rgb '" << colours[i] << "' title '"
+            << name << " (" << d.rows.size() << ")'";
+      data.push_back(std::move(d));
+    }
+    ++i;
+  }
+  auto add_line = [&](const std::string& name, std::vector<core::Vec2> pts, bool closed,
+                      const std::string& style, const std::string& title) {
+    if (pts.empty()) return;
+    if (closed) pts.push_back(pts.front());
+    PlotData d{name, {}};
+    for (const auto& p : pts) d.rows.push_back({p.x(), p.y()});
+    data.push_back(std::move(d));
+    plots << (plots.tellp() > 0 ? ", " : "") << "$" << name << " using 1:2 with lines " << style
+          << " title '" << title << "'";
+  };
+  add_line("left_lane", track.lane_points(track.left_lane), track.closed,
+           "lw 1 dt 2 lc rgb '#1f4fd8'", "left lane");
+  add_line("right_lane", track.lane_points(track.right_lane), track.closed,
+           "lw 1 dt 2 lc rgb '#c9a800'", "right lane");
+  add_line("centre", track.centre_line, track.closed, "lw 1.5 lc rgb '#404040'", "centre line");
+
+  PlotData gates{"gates", {}};
+  for (const auto& g : track.timing_gates)
+    gates.rows.push_back({g.left.x(), g.left.y(), g.right.x() - g.left.x(), g.right.y() - g.left.y()});
+  if (!gates.rows.empty()) {
+    data.push_back(gates);
+    plots << ", $gates using 1:2:3:4 with vectors nohead lw 2 lc rgb '#2ca02c' title 'timing gate'";
+  }
+  const double arrow_m = 4.0;
+  data.push_back({"start", {{track.start.x, track.start.y, arrow_m * std::cos(track.start.yaw),
+                             arrow_m * std::sin(track.start.yaw)}}});
+  plots << ", $start using 1:2:3:4 with vectors filled head lw 3 lc rgb '#000000' title 'start'";
+
+  const auto violations = tracks::check_rules(track, ev);
+  PlotData viol{"violations", {}};
+  for (const auto& v : violations) viol.rows.push_back({v.where.x(), v.where.y()});
+  if (!viol.rows.empty()) {
+    data.push_back(viol);
+    plots << ", $violations using 1:2 with points pt 6 ps 4 lw 2 lc rgb '#e00000' title '"
+          << violations.size() << " rule violation" << (violations.size() == 1 ? "" : "s")
+          << "'";
+  }
+
+  // the figure: equal axis scales, legend outside
+  std::ostringstream script;
+  std::string title = track.name;
+  for (char& ch : title)
+    if (ch == '\'') ch = ' ';
+  script << "set title '" << title << " (" << tracks::to_string(ev) << ", "
+         << track.cones.size() << " cones)' noenhanced\n"
+         << "set size ratio -1\nset grid\nset key outside right top\n"
+         << "set xlabel 'x [m]'\nset ylabel 'y [m]'\n"
+         << "plot " << plots.str() << "\n";
+  render_png(script.str(), data, out_png);
+}
+
+}  // namespace conesim::sim

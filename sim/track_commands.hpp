@@ -1,0 +1,44 @@
+#pragma once
+// The `conesim track ...` commands as plain functions: the command line only wires them up.
+
+#include <cstdint>
+#include <filesystem>
+#include <iosfwd>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "tracks/track.hpp"
+
+namespace conesim::sim {
+
+/// Exit codes shared by the commands.
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitViolations = 1;
+inline constexpr int kExitBadInput = 2;
+
+/// Reads each file and checks it against the rules of `event` (inferred per file when empty).
+/// Unreadable files print "file:line: what was expected" to `err` and give exit 2; rule
+/// violations are printed to `out` and give exit 1 only when `strict`.
+int track_validate(const std::vector<std::filesystem::path>& files,
+                   std::optional<tracks::EventType> event, bool strict, std::ostream& out,
+                   std::ostream& err);
+
+/// The `track info` JSON: cones per class, length_m, min_width_m, max_spacing_m, min_radius_m,
+/// violations, plus event, closed and warnings.
+nlohmann::json track_info(const tracks::Track& track, std::optional<tracks::EventType> event);
+
+/// Makes the layout of an event: the FSG skidpad or acceleration, or a generated circuit.
+tracks::Track make_event_track(tracks::EventType event, uint64_t seed);
+
+/// Writes a track by the output's extension, all or nothing (a temporary file is renamed).
+void write_track_atomically(const tracks::Track& track, const std::filesystem::path& out);
+
+/// Plots the track with gnuplot: cones in their colours, lanes, centre line, start pose,
+/// gates and rule violations marked.
+void plot_track(const tracks::Track& track, std::optional<tracks::EventType> event,
+                const std::filesystem::path& out_png);
+
+}  // namespace conesim::sim
