@@ -10,13 +10,28 @@ namespace conesim::tracks {
 
 /// What the generator aims for; every track it returns passes check_rules for the event.
 struct GeneratorParams {
+  /// The event the track is for: autocross or trackdrive (same layout, same rules here).
   EventType event = EventType::kTrackdrive;
+  /// Shortest lap accepted (centre line), metres.
   double min_lap_m = 200.0;
+  /// Longest lap accepted (centre line), metres.
   double max_lap_m = 500.0;
+  /// Narrowest track width; sections are drawn between this and 0.8 m more, metres.
   double width_m = 3.5;
+  /// Cone spacing along a boundary on straights; tighter in turns (3 m in hairpins), metres.
   double cone_spacing_m = 4.5;
   /// Attempts before giving up (each attempt draws a new layout from the seed's stream).
   int max_attempts = 500;
+};
+
+/// What one call of generate_circuit did, for tuning and benchmarks.
+struct GenerationReport {
+  /// Layouts drawn, the accepted one included.
+  int attempts = 0;
+  /// Drawn layouts rejected by the generator's own geometry checks (clearance, length, ...).
+  int rejected_geometry = 0;
+  /// Layouts that passed the geometry checks but broke a rule of check_rules.
+  int rejected_rules = 0;
 };
 
 /// Builds a closed circuit of straights, sweepers, hairpins, chicanes and slaloms, with blue
@@ -24,5 +39,8 @@ struct GeneratorParams {
 /// pose behind it. Same seed, same track. Throws std::runtime_error if no compliant layout is
 /// found within max_attempts.
 Track generate_circuit(uint64_t seed, const GeneratorParams& params = {});
+
+/// As above, and fills `report` (when not null) with the attempts it took.
+Track generate_circuit(uint64_t seed, const GeneratorParams& params, GenerationReport* report);
 
 }  // namespace conesim::tracks

@@ -1,5 +1,6 @@
 #pragma once
-// Rebuilding the order of boundary cones when a format does not give it.
+// Recovering the structure a format does not give: the order of boundary cones, whether the
+// lanes close, the start pose and time-keeping gates made of big orange cones.
 
 #include <vector>
 
@@ -22,5 +23,24 @@ void rebuild_lanes(Track& track);
 /// When the source gives no start pose: the middle of the big orange start gate (or the first
 /// centre-line point), facing along the lanes. Adds a warning to the track.
 void guess_start_pose(Track& track);
+
+/// True when the ordered lane closes on itself: its last cone is within a few metres of the
+/// first one (about one cone spacing) and the lane is long enough to be a circuit.
+bool lane_closes(const Track& track, const std::vector<int>& lane);
+
+/// Puts lanes given in a file into driving order: reverses both when the left lane lies on the
+/// right of the direction of travel (with a warning), and rotates closed lanes so that they
+/// begin at the cone nearest the start pose.
+void orient_lanes(Track& track);
+
+/// Unit vector across the track near p, pointing from the right boundary to the left one:
+/// taken from the lanes when both exist, else from the nearest blue and yellow cones, else the
+/// start pose's left.
+Vec2 left_direction_at(const Track& track, const Vec2& p);
+
+/// Time-keeping gates made of the big orange cones: cones closer than 6 m to each other form a
+/// group, the group is split into its left and right side (left_direction_at), and the gate
+/// joins the middles of the two sides. Groups with cones on one side only give no gate.
+std::vector<Gate> gates_from_big_orange(const Track& track);
 
 }  // namespace conesim::tracks

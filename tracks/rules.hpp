@@ -16,45 +16,94 @@ struct Violation {
   std::string message;
   /// Where on the track (track frame, metres).
   Vec2 where = Vec2::Zero();
+  /// Advice only (no big orange cones at the start): the layout is still legal.
+  bool warning = false;
 
-  /// "rule at (x, y): message".
+  /// "rule at (x, y): message", with " (warning)" appended for advice.
   std::string to_string() const;
 };
 
 /// Limits from the FSG handbook (D8 / DV rules) with a small tolerance for surveyed tracks.
+/// Lengths, widths and spacings are measured between cone centres.
 struct RuleLimits {
+  /// Lap (closed) or course (open autocross) length along the centre line.
   double min_lap_m = 200.0;
   double max_lap_m = 500.0;
+  /// Smallest distance from a boundary cone to the other boundary.
   double min_width_m = 3.0;
+  /// Longest straight: a stretch whose heading stays within straight_heading_tolerance_deg.
   double max_straight_m = 80.0;
+  /// Largest diameter of a constant turn: a stretch turning one way by wide_turn_min_sweep_deg
+  /// or more while its radius of curvature stays above max_turn_diameter_m / 2 is a violation.
   double max_turn_diameter_m = 50.0;
+  /// Smallest outer diameter of a hairpin: twice (centre-line radius + distance from the
+  /// centre line to the outer boundary) at the tightest point.
   double min_hairpin_outer_diameter_m = 9.0;
+  /// Largest gap between consecutive cones of a boundary (closed lanes: the closing gap too).
   double max_cone_spacing_m = 5.0;
+  /// Slalom cone spacing (not checked yet: slaloms are not recognised).
   double slalom_min_spacing_m = 7.5;
   double slalom_max_spacing_m = 12.0;
+
+  /// A measured length within this of a limit passes: surveyed cones are placed and measured to
+  /// a few centimetres. Real tracks' 5.3 m gaps still fail the 5 m spacing rule.
+  double survey_tolerance_m = 0.05;
+  /// Heading change allowed along a straight, degrees (chord headings over about 3 m).
+  double straight_heading_tolerance_deg = 3.0;
+  /// Turning angle from which a wide turn counts as a constant turn, degrees (a quarter circle).
+  double wide_turn_min_sweep_deg = 90.0;
+  /// Fewest cones a boundary lane may have.
+  int min_lane_cones = 3;
+  /// Big orange cones must lie this close to the start pose on closed circuits (a warning).
+  double start_finish_search_m = 20.0;
+  /// Skidpad: circle centres 18.25 m apart within this tolerance.
+  double skidpad_centre_distance_tolerance_m = 0.5;
+  /// Skidpad: fitted cone-ring radii within this of 7.475 m (inner) and 10.775 m (outer).
+  double skidpad_radius_tolerance_m = 0.3;
+  /// Acceleration: 75 m between the start and the finish gate within this tolerance.
+  double acceleration_length_tolerance_m = 1.0;
+  /// Acceleration: largest sideways departure of the centre line from the gate-to-gate line.
+  double acceleration_max_deviation_m = 1.0;
+
+  /// True when the limits are usable; otherwise false and a reason in `error` (when given).
+  bool is_valid(std::string* error = nullptr) const;
 };
 
 /// Geometry figures of a layout (for `conesim track info`).
 struct TrackStats {
-  /// Centre-line length (one lap for a closed circuit), metres.
+  /// Centre-line length (one lap for a closed circuit, closing segment included), metres.
   double length_m = 0.0;
-  /// Smallest distance between the two boundaries along the track, metres.
+  /// Smallest distance between the two boundaries along the track (from each cone of a lane to
+  /// the other lane's polyline), metres; 0 when a lane is empty.
   double min_width_m = 0.0;
-  /// Largest gap between consecutive cones of a boundary, metres.
+  /// Largest gap between consecutive cones of a boundary (closing gap included), metres.
   double max_spacing_m = 0.0;
-  /// Smallest radius of curvature of the centre line, metres.
+  /// Smallest radius of curvature of the centre line, from circles fitted over about 6 m of
+  /// line around each point, metres; infinity for a straight line.
   double min_radius_m = 0.0;
 };
 
-/// Computes the figures above from the lanes and the centre line.
+/// Computes the figures above from the lanes and the centre line (derived when the track has
+/// none).
 TrackStats compute_stats(const Track& track);
 
 /// The event whose rules apply: the track's own when it has one, otherwise recognised from the
-/// layout (closed circuit: trackdrive; open and straight: acceleration; figure eight: skidpad).
+/// layout (closed circuit: trackdrive; two rings of cones in a figure eight: skidpad; open,
+/// nearly straight and 60-100 m between the gates or along the cones: acceleration; anything
+/// else: autocross).
 EventType infer_event(const Track& track);
 
-/// Every rule of `event` the track breaks; empty when it is compliant.
+/// Every rule of `event` the track breaks (and warnings); empty when it is compliant. Autocross
+/// and trackdrive: lane_cones, lap_length, min_width, max_cone_spacing, max_straight,
+/// max_turn_diameter, min_hairpin_diameter, boundary_crossing, boundary_self_crossing,
+/// start_on_track, start_finish_cones (warning, closed circuits only). Skidpad: skidpad_circles,
+/// skidpad_centre_distance, skidpad_inner_radius, skidpad_outer_radius, timing_gate.
+/// Acceleration: lane_cones, timing_gates, acceleration_length, acceleration_straight,
+/// min_width, braking_zone, start_on_track.
 std::vector<Violation> check_rules(const Track& track, EventType event,
                                    const RuleLimits& limits = {});
+
+/// True when none of the violations is more than a warning.
+bool is_compliant(const std::vector<Violation>& violations);
 
 }  // namespace conesim::tracks

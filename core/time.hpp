@@ -1,0 +1,21 @@
+#pragma once
+// The one sim clock: integer microseconds, so that schedules never drift.
+
+#include <cstdint>
+
+namespace conesim::core {
+
+/// Sim time or a duration, microseconds.
+using TimeUs = int64_t;
+
+inline constexpr TimeUs kUsPerSecond = 1'000'000;
+
+/// Seconds as a double (for physics and output).
+inline constexpr double to_seconds(TimeUs t) { return static_cast<double>(t) * 1e-6; }
+
+/// Whole microseconds from seconds, rounded to nearest.
+inline constexpr TimeUs from_seconds(double s) {
+  return static_cast<TimeUs>(s * 1e6 + (s >= 0 ? 0.5 : -0.5));
+}
+
+}  // namespace conesim::core

@@ -1,0 +1,186 @@
+#include "sim/vehicle_sim.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+#include "vehicle_models/mjcf_builder.hpp"
+#include "vehicle_models/steering.hpp"
+
+namespace conesim::sim {
+
+namespace {
+
+constexpr double kGravity = 9.81;
+// brake balance: share of the braking torque on each front wheel (the rear gets the rest)
+constexpr double kFrontBrakeShare = 0.3;
+// slip band over which traction control and ABS fade the torque out
+constexpr double kSlipFadeBand = 0.10;
+
+// loads MJCF text through MuJoCo's virtual file system
+mjModel* load_model(const std::string& xml) {
+  auto vfs = std::make_unique<mjVFS>();
+  mj_defaultVFS(vfs.get());
+  const char* name = "conesim_car.xml";
+  if (mj_makeEmptyFileVFS(vfs.get(), name, static_cast<int>(xml.size())) != 0)
+    throw std::runtime_error("MuJoCo: cannot create the in-memory model file");
+  std::memcpy(vfs->filedata[mj_findFileVFS(vfs.get(), name)], xml.data(), xml.size());
+  char error[1000] = "";
+  mjModel* model = mj_loadXML(name, vfs.get(), error, sizeof(error));
+  mj_deleteVFS(vfs.get());
+  if (!model) throw std::runtime_error(std::string("MuJoCo could not load the car: ") + error);
+  return model;
+}
+
+int require_id(const mjModel* m, int type, const std::string& name) {
+  const int id = mj_name2id(m, type, name.c_str());
+  if (id < 0) throw std::runtime_error("MuJoCo model has no " + name);
+  return id;
+}
+
+// torque factor of traction control / ABS for a slip ratio beyond the target
+double slip_fade(double slip, double target) {
+  return std::clamp(1.0 - (slip - target) / kSlipFadeBand, 0.0, 1.0);
+}
+
+}  // namespace
+
+VehicleSim::VehicleSim(const vehicle_models::VehicleParams& params, const core::Pose2& start)
+    : params_(params) {
+  if (const std::string error = params.validate(); !error.empty())
+    throw std::invalid_argument("vehicle parameters: " + error);
+  model_ = load_model(vehicle_models::build_mjcf(params));
+  data_ = mj_makeData(model_);
+
+  // look up what the controller drives and reads
+  chassis_body_ = require_id(model_, mjOBJ_BODY, vehicle_models::MjcfNames::kChassis);
+  for (int c = 0; c < 4; ++c) {
+    const std::string corner = vehicle_models::MjcfNames::kCorners[c];
+    knuckle_body_[c] = require_id(model_, mjOBJ_BODY, "knuckle_" + corner);
+    const int spin = require_id(model_, mjOBJ_JOINT, "spin_" + corner);
+    spin_qvel_[c] = model_->jnt_dofadr[spin];
+    drive_actuator_[c] = require_id(model_, mjOBJ_ACTUATOR, "drive_" + corner);
+    if (c < 2) {
+      steer_qpos_[c] = model_->jnt_qposadr[require_id(model_, mjOBJ_JOINT, "steer_" + corner)];
+      steer_actuator_[c] = require_id(model_, mjOBJ_ACTUATOR, "steer_" + corner);
+    }
+  }
+
+  // place the car: the free joint's position and yaw quaternion
+  const int free_joint = require_id(model_, mjOBJ_JOINT, vehicle_models::MjcfNames::kChassis);
+  mjtNum* q = data_->qpos + model_->jnt_qposadr[free_joint];
+  q[0] = start.x;
+  q[1] = start.y;
+  q[3] = std::cos(0.5 * start.yaw);
+  q[4] = 0.0;
+  q[5] = 0.0;
+  q[6] = std::sin(0.5 * start.yaw);
+  mj_forward(model_, data_);
+}
+
+VehicleSim::~VehicleSim() {
+  mj_deleteData(data_);
+  mj_deleteModel(model_);
+}
+
+double VehicleSim::timestep_s() const { return model_->opt.timestep; }
+
+void VehicleSim::step(const core::VehicleCommand& command) {
+  mj_step1(model_, data_);
+  apply_controls(command);
+  mj_step2(model_, data_);
+}
+
+void VehicleSim::apply_controls(const core::VehicleCommand& command) {
+  const auto& p = params_;
+  const double dt = model_->opt.timestep;
+
+  // steering: rate-limited single-track angle, split into the two wheel angles
+  const double target = std::clamp(command.steer_rad, -p.max_steer_rad, p.max_steer_rad);
+  const double max_change = p.max_steer_rate_rps * dt;
+  steer_rad_ += std::clamp(target - steer_rad_, -max_change, max_change);
+  const auto wheels = vehicle_models::split_steering(steer_rad_, p);
+  data_->ctrl[steer_actuator_[0]] = wheels.left_rad;
+  data_->ctrl[steer_actuator_[1]] = wheels.right_rad;
+
+  // chassis speed and the resistances the drive has to make up for
+  mjtNum vel[6];
+  mj_objectVelocity(model_, data_, mjOBJ_BODY, chassis_body_, vel, 1);
+  const double vx = vel[3];
+  const double vy = vel[4];
+  const double speed = std::hypot(vx, vy);
+  const double q_dyn = 0.5 * p.air_density_kgm3 * speed * speed;
+  const double drag_n = q_dyn * p.drag_area_m2;
+  const double downforce_n = q_dyn * p.lift_area_m2;
+  const double rolling_n =
+      speed > 0.05 ? p.rolling_resistance * (p.mass_kg * kGravity + downforce_n) : 0.0;
+
+  // aero drag, downforce and rolling resistance act on the chassis at its centre of mass
+  mjtNum* xfrc = data_->xfrc_applied + 6 * chassis_body_;
+  std::fill(xfrc, xfrc + 6, 0.0);
+  if (speed > 1e-3) {
+    const mjtNum* R = data_->xmat + 9 * chassis_body_;
+    // velocity direction in the world frame
+    const double wx = (R[0] * vx + R[1] * vy) / speed;
+    const double wy = (R[3] * vx + R[4] * vy) / speed;
+    xfrc[0] = -(drag_n + rolling_n) * wx;
+    xfrc[1] = -(drag_n + rolling_n) * wy;
+    xfrc[2] = -downforce_n;
+  }
+
+  // longitudinal force wanted at the tyres, resistances included
+  double force_n = p.mass_kg * command.accel_mps2 + drag_n + rolling_n;
+  if (command.hold_stopped) force_n = -p.mass_kg * 2.0 * kGravity;
+
+  for (int c = 0; c < 4; ++c) {
+    const bool front = c < 2;
+    const double omega = data_->qvel[spin_qvel_[c]];
+    // wheel centre speed along the wheel's heading (the knuckle does not spin)
+    mjtNum kv[6];
+    mj_objectVelocity(model_, data_, mjOBJ_BODY, knuckle_body_[c], kv, 1);
+    const double v_wheel = kv[3];
+    const double slip = (omega * p.wheel_radius_m - v_wheel) / std::max(std::abs(v_wheel), 1.0);
+
+    double torque = 0.0;
+    if (force_n >= 0.0) {
+      // drive: split by the axles' torque limits, then power limit and traction control
+      const double axle_max = front ? p.max_torque_front_nm : p.max_torque_rear_nm;
+      const double total_max = 2.0 * (p.max_torque_front_nm + p.max_torque_rear_nm);
+      torque = std::min(force_n * p.wheel_radius_m * axle_max / total_max, axle_max);
+      const double power_per_motor = p.max_power_w / 4.0;
+      if (std::abs(omega) > 1e-3) torque = std::min(torque, power_per_motor / std::abs(omega));
+      torque *= slip_fade(slip, p.slip_target);
+    } else {
+      // brake: fixed balance, ABS on the slip, torque against the spin (smooth at standstill)
+      const double share = front ? kFrontBrakeShare : 0.5 - kFrontBrakeShare;
+      double brake = std::min(-force_n * p.wheel_radius_m * share, p.max_brake_torque_nm);
+      brake *= slip_fade(-slip, p.slip_target);
+      torque = -brake * std::clamp(omega / 2.0, -1.0, 1.0);
+    }
+    data_->ctrl[drive_actuator_[c]] = torque;
+  }
+}
+
+VehicleTruth VehicleSim::truth() const {
+  VehicleTruth t;
+  const mjtNum* pos = data_->xpos + 3 * chassis_body_;
+  const mjtNum* R = data_->xmat + 9 * chassis_body_;
+  t.pose = {pos[0], pos[1], std::atan2(R[3], R[0])};
+  mjtNum vel[6];
+  mj_objectVelocity(model_, data_, mjOBJ_BODY, chassis_body_, vel, 1);
+  t.vx_mps = vel[3];
+  t.vy_mps = vel[4];
+  t.yaw_rate_rps = vel[2];
+  t.steer_rad = steer_rad_;
+  t.wheel_angle_rad = {data_->qpos[steer_qpos_[0]], data_->qpos[steer_qpos_[1]]};
+  for (int c = 0; c < 4; ++c) {
+    t.wheel_omega_rps[c] = data_->qvel[spin_qvel_[c]];
+    const mjtNum* k = data_->xpos + 3 * knuckle_body_[c];
+    t.wheel_positions[c] = {k[0], k[1]};
+  }
+  return t;
+}
+
+}  // namespace conesim::sim

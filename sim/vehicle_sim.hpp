@@ -1,0 +1,73 @@
+#pragma once
+// The car in MuJoCo: builds the model from the vehicle parameters, turns driver commands into
+// steering servo targets and wheel torques (rate limit, anti-Ackermann split, power limit,
+// traction control, ABS, brakes, aero and rolling resistance), and reads the ground truth back.
+
+#include <mujoco/mujoco.h>
+
+#include <array>
+#include <memory>
+
+#include "core/autonomy_types.hpp"
+#include "core/geometry.hpp"
+#include "vehicle_models/vehicle_params.hpp"
+
+namespace conesim::sim {
+
+/// Exact state of the car, as only the harness (referee, evaluator) sees it.
+struct VehicleTruth {
+  /// Pose of the rear axle centre in the track frame.
+  core::Pose2 pose;
+  /// Velocity of the rear axle centre in the vehicle frame, m/s.
+  double vx_mps = 0.0;
+  double vy_mps = 0.0;
+  double yaw_rate_rps = 0.0;
+  /// Single-track steering angle now applied (after the rate limit), radians.
+  double steer_rad = 0.0;
+  /// Front wheel angles as MuJoCo has them, radians (left, right).
+  std::array<double, 2> wheel_angle_rad{};
+  /// Wheel spin rates fl, fr, rl, rr, rad/s.
+  std::array<double, 4> wheel_omega_rps{};
+  /// Centres of the four wheels' contact patches in the track frame.
+  std::array<core::Vec2, 4> wheel_positions{};
+};
+
+/// Owns the MuJoCo model and data of one car.
+class VehicleSim {
+ public:
+  /// Builds the model and places the rear axle centre at `start`, at rest. Throws
+  /// std::runtime_error with MuJoCo's message if the model does not load.
+  VehicleSim(const vehicle_models::VehicleParams& params, const core::Pose2& start);
+  ~VehicleSim();
+  VehicleSim(const VehicleSim&) = delete;
+  VehicleSim& operator=(const VehicleSim&) = delete;
+
+  /// Advances one physics step with the command held over the step.
+  void step(const core::VehicleCommand& command);
+
+  /// The state after the last step.
+  VehicleTruth truth() const;
+
+  /// Physics step, seconds.
+  double timestep_s() const;
+
+  const mjModel* model() const { return model_; }
+  const mjData* data() const { return data_; }
+  const vehicle_models::VehicleParams& params() const { return params_; }
+
+ private:
+  void apply_controls(const core::VehicleCommand& command);
+
+  vehicle_models::VehicleParams params_;
+  mjModel* model_ = nullptr;
+  mjData* data_ = nullptr;
+  int chassis_body_ = -1;
+  std::array<int, 4> knuckle_body_{};
+  std::array<int, 2> steer_qpos_{};
+  std::array<int, 4> spin_qvel_{};
+  std::array<int, 2> steer_actuator_{};
+  std::array<int, 4> drive_actuator_{};
+  double steer_rad_ = 0.0;
+};
+
+}  // namespace conesim::sim

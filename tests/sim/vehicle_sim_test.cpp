@@ -1,0 +1,85 @@
+#include "sim/vehicle_sim.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+
+#include "vehicle_models/kinematics.hpp"
+
+namespace conesim::sim {
+namespace {
+
+using core::VehicleCommand;
+using vehicle_models::VehicleParams;
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+// holds a speed with a proportional controller and a fixed steering angle
+VehicleCommand cruise(const VehicleTruth& t, double speed_mps, double steer_rad) {
+  return {steer_rad, std::clamp(3.0 * (speed_mps - t.vx_mps), -8.0, 8.0), false};
+}
+
+TEST(VehicleSim, RestsLevelAtDesignRideHeight) {
+  const VehicleParams params;
+  VehicleSim car(params, {});
+  for (int i = 0; i < 1000; ++i) car.step({});
+  const VehicleTruth t = car.truth();
+  EXPECT_NEAR(car.data()->xpos[3 * 1 + 2], params.wheel_radius_m, 0.01);
+  EXPECT_LT(std::hypot(t.pose.x, t.pose.y), 0.01);
+  EXPECT_LT(std::abs(t.vx_mps), 0.01);
+}
+
+TEST(VehicleSim, AccelerationRunTakesAsLongAsARealFsCar) {
+  VehicleSim car(VehicleParams{}, {});
+  double t_s = 0.0;
+  while (car.truth().pose.x < 75.0 && t_s < 10.0) {
+    car.step({0.0, 30.0, false});
+    t_s += car.timestep_s();
+  }
+  std::printf("measured: 75 m in %.2f s, %.1f m/s at the line\n", t_s, car.truth().vx_mps);
+  // real FS electric cars: 3.5-4.5 s over 75 m (VEHICLE_NOTES.md measured 3.73 s)
+  EXPECT_GT(t_s, 3.3);
+  EXPECT_LT(t_s, 4.5);
+  EXPECT_LT(std::abs(car.truth().pose.y), 0.2);
+}
+
+TEST(VehicleSim, BrakesFromTwentyMetresPerSecondInAboutTwelveMetres) {
+  VehicleSim car(VehicleParams{}, {});
+  while (car.truth().vx_mps < 20.0) car.step({0.0, 30.0, false});
+  const double x0 = car.truth().pose.x;
+  int steps = 0;
+  while (car.truth().vx_mps > 0.05 && steps < 10000) {
+    car.step({0.0, -30.0, false});
+    ++steps;
+  }
+  const double distance = car.truth().pose.x - x0;
+  std::printf("measured: braking 20 m/s to rest in %.2f m\n", distance);
+  // 1.5 g would stop in 13.6 m, 1.8 g in 11.3 m
+  EXPECT_GT(distance, 10.0);
+  EXPECT_LT(distance, 15.0);
+  EXPECT_LT(std::abs(car.truth().pose.yaw), 3.0 * kDeg);
+}
+
+TEST(VehicleSim, YawRateMatchesKinematicBicycleAtLowSpeedAndSmallSteer) {
+  const VehicleParams params;
+  VehicleSim car(params, {});
+  const double steer = 3.0 * kDeg;
+  for (int i = 0; i < 8000; ++i) car.step(cruise(car.truth(), 4.0, steer));
+  const VehicleTruth t = car.truth();
+  const double expected = vehicle_models::bicycle_yaw_rate(t.vx_mps, steer, params.wheelbase_m);
+  std::printf("measured: yaw rate %.5f rad/s, bicycle %.5f rad/s\n", t.yaw_rate_rps, expected);
+  // the tyres fight a little under anti-Ackermann: 0.04 % measured at 2.9 degrees
+  EXPECT_NEAR(t.yaw_rate_rps, expected, 0.02 * std::abs(expected));
+}
+
+TEST(VehicleSim, SteeringIsRateLimited) {
+  const VehicleParams params;
+  VehicleSim car(params, {});
+  car.step({params.max_steer_rad, 0.0, false});
+  EXPECT_NEAR(car.truth().steer_rad, params.max_steer_rate_rps * car.timestep_s(), 1e-12);
+}
+
+}  // namespace
+}  // namespace conesim::sim

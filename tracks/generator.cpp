@@ -1,0 +1,669 @@
+#include "tracks/generator.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "core/rng.hpp"
+
+namespace conesim::tracks {
+
+namespace {
+
+using core::Rng;
+using core::uniform;
+using core::uniform_int;
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kDeg = kPi / 180.0;
+
+// start zone: the start pose sits kStartLineM behind the start line on the start straight
+constexpr double kStartLineM = 6.0;
+constexpr double kBigConeHalfGapM = 1.3;    // big orange cones at the line +- this, along track
+constexpr double kBigConeOutsideM = 0.7;    // and this far outside the boundary (as at FSG)
+constexpr double kGatePostOutsideM = 1.2;   // photocell posts outside the boundary
+
+// design limits, inside the handbook's with a margin
+constexpr double kMaxStraightM = 75.0;      // rule: 80 m
+constexpr double kLapMarginM = 10.0;        // kept from min_lap_m and max_lap_m
+constexpr double kClearanceM = 2.0;         // between boundaries of non-adjacent track parts
+constexpr double kAdjacentM = 20.0;         // track parts closer than this along the line
+constexpr double kExtraWidthM = 0.8;        // sections are up to this much wider than width_m
+constexpr double kWidthBlendM = 3.0;        // width changes ramp over +- this
+
+// primitive geometry (centre-line radii); the hairpin's inner boundary stays >= 2.5 m
+constexpr double kHairpinMinRadiusM = 5.0;
+constexpr double kHairpinMaxRadiusM = 7.0;
+constexpr double kCornerMinRadiusM = 8.0;
+constexpr double kCornerMaxRadiusM = 12.0;
+constexpr double kSweeperMaxRadiusM = 22.0;  // rule: turns up to 50 m diameter
+constexpr double kSlalomMinHalfPeriodM = 8.5;  // rule: slalom cones 7.5 .. 12 m apart
+constexpr double kSlalomMaxHalfPeriodM = 11.5;
+constexpr double kSlalomMaxCurvature = 1.0 / 8.5;
+constexpr std::array<double, 4> kClosingRadiiM{8.0, 11.0, 14.0, 18.0};
+
+// cone spacing: cone_spacing_m on straights and wide sweepers, kTightSpacingM in hairpins
+constexpr double kTightSpacingM = 3.0;
+constexpr double kWideCurvature = 1.0 / 25.0;
+constexpr double kTightCurvature = 1.0 / 7.0;
+
+// sampling steps: the design integration, and the clearance checks
+constexpr double kSampleStepM = 0.1;
+constexpr double kCheckStepM = 0.5;
+
+// what a piece of centre line is part of (drives widths and the feature mix)
+enum class Feature { kStraight, kSweeper, kCorner, kHairpin, kChicane, kSlalom, kClosing };
+
+// one piece of centre line: a constant-curvature arc (curvature 0: a straight), or one half
+// wave of a slalom whose curvature follows peak * sin(pi s / length)
+struct Piece {
+  Feature feature = Feature::kStraight;
+  bool sine = false;
+  double length_m = 0.0;
+  double curvature = 0.0;  // signed, left positive; the peak value for a half wave
+  double width_m = 0.0;
+};
+
+// a pose of the turtle that lays the pieces; heading is not wrapped (it counts the laps)
+struct Turtle {
+  Vec2 position = Vec2::Zero();
+  double heading = 0.0;
+  double s_m = 0.0;
+};
+
+// a point of the sampled centre line
+struct Sample {
+  Vec2 position = Vec2::Zero();
+  double heading = 0.0;
+  double curvature = 0.0;
+  double width_m = 0.0;
+  double s_m = 0.0;
+};
+
+// heading change from the start of a piece to distance u into it
+double heading_change(const Piece& piece, double u) {
+  if (!piece.sine) return piece.curvature * u;
+  const double k = kPi / piece.length_m;
+  return piece.curvature / k * (1.0 - std::cos(k * u));
+}
+
+// curvature at distance u into a piece
+double curvature_at(const Piece& piece, double u) {
+  if (!piece.sine) return piece.curvature;
+  return piece.curvature * std::sin(kPi * u / piece.length_m);
+}
+
+// displacement along a piece from distance u to u + h: the exact chord of an arc, Simpson's
+// rule over eight intervals for a half wave
+Vec2 displacement(const Piece& piece, double heading0, double u, double h) {
+  if (!piece.sine) {
+    const double turn = piece.curvature * h;
+    const double mid = heading0 + heading_change(piece, u) + 0.5 * turn;
+    const double chord = std::abs(turn) > 1e-12 ? h * std::sin(0.5 * turn) / (0.5 * turn) : h;
+    return chord * Vec2(std::cos(mid), std::sin(mid));
+  }
+  constexpr int kIntervals = 8;
+  Vec2 sum = Vec2::Zero();
+  for (int i = 0; i <= kIntervals; ++i) {
+    const double heading = heading0 + heading_change(piece, u + h * i / kIntervals);
+    const double weight = (i == 0 || i == kIntervals) ? 1.0 : (i % 2 == 1 ? 4.0 : 2.0);
+    sum += weight * Vec2(std::cos(heading), std::sin(heading));
+  }
+  return sum * (h / (3.0 * kIntervals));
+}
+
+// lays a piece from the turtle's pose: appends samples every <= step_m (the first point of the
+// piece included, its end excluded) and moves the turtle to the piece's end
+void lay_piece(const Piece& piece, double step_m, Turtle& turtle, std::vector<Sample>* out) {
+  const int steps = std::max(1, static_cast<int>(std::ceil(piece.length_m / step_m - 1e-9)));
+  const double h = piece.length_m / steps;
+  const double heading0 = turtle.heading;
+  for (int i = 0; i < steps; ++i) {
+    const double u = i * h;
+    if (out) {
+      out->push_back({turtle.position, heading0 + heading_change(piece, u),
+                      curvature_at(piece, u), piece.width_m, turtle.s_m});
+    }
+    turtle.position += displacement(piece, heading0, u, h);
+    turtle.s_m += h;
+  }
+  turtle.heading = heading0 + heading_change(piece, piece.length_m);
+}
+
+// lays a list of pieces from a turtle pose
+std::vector<Sample> lay_pieces(const std::vector<Piece>& pieces, double step_m, Turtle& turtle) {
+  std::vector<Sample> out;
+  for (const Piece& piece : pieces) lay_piece(piece, step_m, turtle, &out);
+  return out;
+}
+
+// true when the samples fresh[first..] keep the clearance to every sample of `laid` that is
+// not adjacent along the line (lap_m > 0: measure along the closed loop)
+bool keeps_clearance(const std::vector<Sample>& laid, const std::vector<Sample>& fresh,
+                     double lap_m) {
+  for (const Sample& a : fresh) {
+    for (const Sample& b : laid) {
+      double gap = std::abs(a.s_m - b.s_m);
+      if (lap_m > 0.0) gap = std::min(gap, lap_m - gap);
+      if (gap < kAdjacentM) continue;
+      const double need = 0.5 * (a.width_m + b.width_m) + kClearanceM;
+      if ((a.position - b.position).squaredNorm() < need * need) return false;
+    }
+  }
+  return true;
+}
+
+// the pieces of one layout, with the turtle's plan
+class LayoutDrawer {
+ public:
+  LayoutDrawer(Rng& rng, const GeneratorParams& params) : rng_(rng), params_(params) {
+    direction_ = uniform(rng_, 0.0, 1.0) < 0.5 ? 1.0 : -1.0;
+    lap_target_m_ = uniform(rng_, params.min_lap_m + 60.0, params.max_lap_m - 70.0);
+    budget_m_ = lap_target_m_ * uniform(rng_, 0.72, 0.85);
+    wobble_deg_ = uniform(rng_, 0.0, 70.0);
+    wobble_waves_ = static_cast<double>(uniform_int(rng_, 1, 2));
+    wobble_phase_ = uniform(rng_, 0.0, 2.0 * kPi);
+    lead_m_ = uniform(rng_, 6.0, 12.0);
+  }
+
+  // draws the open part of the circuit from the start pose; nullopt when it painted itself in
+  std::optional<std::vector<Piece>> draw_open_part() {
+    // the lead-in of the closing straight is reserved so that the turtle stays clear of it
+    Turtle lead{Vec2(-lead_m_, 0.0), 0.0, -lead_m_};
+    laid_ = lay_pieces({straight(lead_m_, width())}, kCheckStepM, lead);
+
+    // the start straight: long enough for the start zone and the feature mix
+    add({straight(uniform(rng_, 30.0, 50.0), width())});
+
+    // primitives until the budget is used, retrying a few draws when one runs into the track
+    while (turtle_.s_m < budget_m_) {
+      bool placed = false;
+      for (int attempt = 0; attempt < 8 && !placed; ++attempt) placed = try_add(draw_primitive());
+      if (!placed) return std::nullopt;
+    }
+    if (hairpins_ == 0) return std::nullopt;
+    return pieces_;
+  }
+
+  const Turtle& end() const { return turtle_; }
+  const std::vector<Sample>& laid() const { return laid_; }
+  double lead_m() const { return lead_m_; }
+  double width() { return params_.width_m + uniform(rng_, 0.0, kExtraWidthM); }
+
+ private:
+  static Piece straight(double length_m, double width_m) {
+    return {Feature::kStraight, false, length_m, 0.0, width_m};
+  }
+  static Piece arc(Feature feature, double radius_m, double turn_rad, double width_m) {
+    const double sign = turn_rad >= 0.0 ? 1.0 : -1.0;
+    return {feature, false, radius_m * std::abs(turn_rad), sign / radius_m, width_m};
+  }
+
+  // heading the plan wants at distance s: one turn per lap, with a wobble for lobes
+  double planned_heading(double s_m) const {
+    const double f = std::clamp(s_m / lap_target_m_, 0.0, 1.0);
+    return direction_ * 2.0 * kPi * f +
+           wobble_deg_ * kDeg * std::sin(2.0 * kPi * wobble_waves_ * f + wobble_phase_) -
+           wobble_deg_ * kDeg * std::sin(wobble_phase_);
+  }
+
+  // the turn the plan asks for over the next ahead_m
+  double wanted_turn(double ahead_m) const {
+    return planned_heading(turtle_.s_m + ahead_m) - turtle_.heading;
+  }
+
+  // turn direction: the plan's, sometimes the other way when the plan asks for little
+  double turn_sign(double wanted, double counter_limit_rad) {
+    double sign = wanted >= 0.0 ? 1.0 : -1.0;
+    if (std::abs(wanted) < counter_limit_rad && uniform(rng_, 0.0, 1.0) < 0.3) sign = -sign;
+    return sign;
+  }
+
+  // a turn angle in [lo, hi]: close to what the plan wants when turning its way
+  double turn_angle(double wanted, double sign, double lo, double hi) {
+    if (sign * wanted <= 0.0) return uniform(rng_, lo, 0.5 * (lo + hi));
+    return std::clamp(std::abs(wanted) * uniform(rng_, 0.8, 1.2), lo, hi);
+  }
+
+  bool last_is_straight() const {
+    return !pieces_.empty() && !pieces_.back().sine && pieces_.back().curvature == 0.0;
+  }
+
+  // one primitive: straight, sweeper, corner, hairpin, chicane or slalom
+  std::vector<Piece> draw_primitive() {
+    const bool force_hairpin = hairpins_ == 0 && turtle_.s_m > 0.5 * budget_m_;
+    const double pick = force_hairpin ? 0.5 : uniform(rng_, 0.0, 1.0);
+    std::vector<Piece> out;
+
+    // hairpin: a braking straight, then 150-200 degrees around a tight radius
+    if (pick >= 0.45 && pick < 0.58) {
+      if (!last_is_straight()) out.push_back(straight(uniform(rng_, 8.0, 20.0), width()));
+      const double wanted = wanted_turn(25.0);
+      const double sign = std::abs(wanted) > 100.0 * kDeg ? (wanted > 0 ? 1.0 : -1.0)
+                                                           : turn_sign(wanted, 2.0 * kPi);
+      const double radius = uniform(rng_, kHairpinMinRadiusM, kHairpinMaxRadiusM);
+      out.push_back(arc(Feature::kHairpin, radius, sign * uniform(rng_, 150.0, 200.0) * kDeg,
+                        width()));
+      out.push_back(straight(uniform(rng_, 6.0, 14.0), width()));
+      return out;
+    }
+
+    // straight (never two in a row)
+    if (pick < 0.22 && !last_is_straight()) {
+      const double length = uniform(rng_, 0.0, 1.0) < 0.2 ? uniform(rng_, 40.0, 60.0)
+                                                         : uniform(rng_, 12.0, 35.0);
+      out.push_back(straight(length, width()));
+      return out;
+    }
+
+    // sweeper: a fast constant turn
+    if (pick < 0.45) {
+      const double radius = uniform(rng_, 12.0, kSweeperMaxRadiusM);
+      const double wanted = wanted_turn(radius * 0.8);
+      const double sign = turn_sign(wanted, 50.0 * kDeg);
+      const double angle = turn_angle(wanted, sign, 25.0 * kDeg, 100.0 * kDeg);
+      out.push_back(arc(Feature::kSweeper, radius, sign * angle, width()));
+      return out;
+    }
+
+    // corner: a slower constant turn
+    if (pick < 0.72) {
+      const double radius = uniform(rng_, kCornerMinRadiusM, kCornerMaxRadiusM);
+      const double wanted = wanted_turn(radius);
+      const double sign = turn_sign(wanted, 50.0 * kDeg);
+      const double angle = turn_angle(wanted, sign, 45.0 * kDeg, 120.0 * kDeg);
+      out.push_back(arc(Feature::kCorner, radius, sign * angle, width()));
+      return out;
+    }
+
+    // chicane: an S-bend that leaves the heading nearly unchanged
+    if (pick < 0.88) {
+      const double sign = uniform(rng_, 0.0, 1.0) < 0.5 ? 1.0 : -1.0;
+      const double angle = uniform(rng_, 30.0, 70.0) * kDeg;
+      const double w = width();
+      out.push_back(arc(Feature::kChicane, uniform(rng_, 8.0, 14.0), sign * angle, w));
+      const double between = uniform(rng_, 0.0, 5.0);
+      if (between > 1.0) out.push_back({Feature::kChicane, false, between, 0.0, w});
+      out.push_back(arc(Feature::kChicane, uniform(rng_, 8.0, 14.0),
+                        -sign * angle * uniform(rng_, 0.7, 1.3), w));
+      return out;
+    }
+
+    // slalom: the line weaves around a row of cones, inflections one half period apart;
+    // half-amplitude first and last half waves keep the heading centred on the row
+    if (slaloms_ > 0) return draw_primitive();
+    if (!last_is_straight()) out.push_back(straight(uniform(rng_, 6.0, 12.0), width()));
+    const int half_waves = 2 * static_cast<int>(uniform_int(rng_, 2, 3));
+    const double half_period = uniform(rng_, kSlalomMinHalfPeriodM, kSlalomMaxHalfPeriodM);
+    const double peak = uniform(rng_, 0.75, 1.0) * kSlalomMaxCurvature;
+    const double sign = uniform(rng_, 0.0, 1.0) < 0.5 ? 1.0 : -1.0;
+    const double w = width();
+    for (int i = 0; i < half_waves; ++i) {
+      const double scale = (i == 0 || i + 1 == half_waves) ? 0.5 : 1.0;
+      const double alternate = i % 2 == 0 ? sign : -sign;
+      out.push_back({Feature::kSlalom, true, half_period, alternate * scale * peak, w});
+    }
+    out.push_back(straight(uniform(rng_, 6.0, 12.0), width()));
+    return out;
+  }
+
+  // lays a primitive when it keeps clear of the track laid so far
+  bool try_add(const std::vector<Piece>& primitive) {
+    Turtle next = turtle_;
+    const std::vector<Sample> fresh = lay_pieces(primitive, kCheckStepM, next);
+    if (!keeps_clearance(laid_, fresh, 0.0)) return false;
+    add_laid(primitive, fresh, next);
+    return true;
+  }
+
+  // lays a primitive without checks (the start straight)
+  void add(const std::vector<Piece>& primitive) {
+    Turtle next = turtle_;
+    const std::vector<Sample> fresh = lay_pieces(primitive, kCheckStepM, next);
+    add_laid(primitive, fresh, next);
+  }
+
+  void add_laid(const std::vector<Piece>& primitive, const std::vector<Sample>& fresh,
+                const Turtle& next) {
+    for (const Piece& p : primitive) {
+      if (p.feature == Feature::kHairpin) ++hairpins_;
+      if (p.feature == Feature::kSlalom && p.sine) slaloms_ = 1;
+    }
+    pieces_.insert(pieces_.end(), primitive.begin(), primitive.end());
+    laid_.insert(laid_.end(), fresh.begin(), fresh.end());
+    turtle_ = next;
+  }
+
+  Rng& rng_;
+  const GeneratorParams& params_;
+  double direction_ = 1.0;
+  double lap_target_m_ = 300.0;
+  double budget_m_ = 250.0;
+  double wobble_deg_ = 0.0;
+  double wobble_waves_ = 1.0;
+  double wobble_phase_ = 0.0;
+  double lead_m_ = 8.0;
+  Turtle turtle_;
+  std::vector<Piece> pieces_;
+  std::vector<Sample> laid_;
+  int hairpins_ = 0;
+  int slaloms_ = 0;
+};
+
+// angle wrapped to [0, 2 pi)
+double wrap_positive(double a) {
+  a = std::fmod(a, 2.0 * kPi);
+  return a < 0.0 ? a + 2.0 * kPi : a;
+}
+
+// one Dubins path of type CSC: turn, straight, turn (turns signed, left positive)
+struct DubinsCsc {
+  double radius_m = 0.0;
+  double turn1 = 0.0;
+  double straight_m = 0.0;
+  double turn2 = 0.0;
+  double length_m() const { return radius_m * (std::abs(turn1) + std::abs(turn2)) + straight_m; }
+};
+
+// the four CSC Dubins paths (LSL, RSR, LSR, RSL) from one pose to another
+std::vector<DubinsCsc> dubins_csc(const Vec2& p0, double heading0, const Vec2& p1,
+                                  double heading1, double r) {
+  const auto centre = [r](const Vec2& p, double heading, double side) {
+    return Vec2(p + side * r * Vec2(-std::sin(heading), std::cos(heading)));
+  };
+  std::vector<DubinsCsc> out;
+  for (const double s0 : {1.0, -1.0}) {
+    for (const double s1 : {1.0, -1.0}) {
+      const Vec2 v = centre(p1, heading1, s1) - centre(p0, heading0, s0);
+      const double d = v.norm();
+      const double psi = std::atan2(v.y(), v.x());
+      double straight_m = d;
+      double phi = psi;
+      // crossing tangents need room for both circles
+      if (s0 != s1) {
+        if (d < 2.0 * r) continue;
+        straight_m = std::sqrt(d * d - 4.0 * r * r);
+        phi = psi + s0 * std::atan2(2.0 * r, straight_m);
+      }
+      const double turn1 = s0 * wrap_positive(s0 * (phi - heading0));
+      const double turn2 = s1 * wrap_positive(s1 * (heading1 - phi));
+      out.push_back({r, turn1, straight_m, turn2});
+    }
+  }
+  return out;
+}
+
+// the pieces of a Dubins path (zero-length parts dropped)
+std::vector<Piece> closing_pieces(const DubinsCsc& path, double width1, double width2,
+                                  double width3) {
+  std::vector<Piece> out;
+  const auto add_arc = [&](double turn, double w) {
+    if (std::abs(turn) * path.radius_m < 0.05) return;
+    out.push_back({Feature::kClosing, false, std::abs(turn) * path.radius_m,
+                   (turn > 0.0 ? 1.0 : -1.0) / path.radius_m, w});
+  };
+  add_arc(path.turn1, width1);
+  if (path.straight_m > 0.05) out.push_back({Feature::kStraight, false, path.straight_m, 0.0, width2});
+  add_arc(path.turn2, width3);
+  return out;
+}
+
+// true for a piece the rule checker sees as part of a straight (it turns by less than 6 deg)
+bool is_straightish(const Piece& p) {
+  return !p.sine && std::abs(p.curvature) * p.length_m < 6.0 * kDeg;
+}
+
+// longest run of straight pieces around the closed loop
+double longest_straight(const std::vector<Piece>& pieces) {
+  const size_t n = pieces.size();
+  double best = 0.0;
+  for (size_t start = 0; start < n; ++start) {
+    if (is_straightish(pieces[(start + n - 1) % n])) continue;  // not the start of a run
+    double run = 0.0;
+    for (size_t k = 0; k < n && is_straightish(pieces[(start + k) % n]); ++k)
+      run += pieces[(start + k) % n].length_m;
+    best = std::max(best, run);
+  }
+  return best;
+}
+
+// closes the open part back to the start pose; the pieces of the whole lap when one of the
+// closing paths keeps the rules and the clearance
+std::optional<std::vector<Piece>> close_loop(LayoutDrawer& drawer, std::vector<Piece> open,
+                                             const GeneratorParams& params) {
+  // candidate closing paths, shortest first
+  const Turtle& end = drawer.end();
+  const Vec2 lead_start(-drawer.lead_m(), 0.0);
+  std::vector<DubinsCsc> candidates;
+  for (double r : kClosingRadiiM) {
+    for (const DubinsCsc& c : dubins_csc(end.position, end.heading, lead_start, 0.0, r)) {
+      if (std::abs(c.turn1) < 1.5 * kPi && std::abs(c.turn2) < 1.5 * kPi) candidates.push_back(c);
+    }
+  }
+  std::sort(candidates.begin(), candidates.end(),
+            [](const DubinsCsc& a, const DubinsCsc& b) { return a.length_m() < b.length_m(); });
+
+  // the open part's samples without the reserved lead-in (it is laid again below)
+  std::vector<Sample> laid;
+  for (const Sample& s : drawer.laid())
+    if (s.s_m >= 0.0) laid.push_back(s);
+
+  const double w1 = drawer.width(), w2 = drawer.width(), w3 = drawer.width();
+  const double lead_w = open.front().width_m;
+  for (const DubinsCsc& c : candidates) {
+    // lap length and straights first: they are cheap
+    const double lap_m = end.s_m + c.length_m() + drawer.lead_m();
+    if (lap_m < params.min_lap_m + kLapMarginM || lap_m > params.max_lap_m - kLapMarginM) continue;
+    std::vector<Piece> closing = closing_pieces(c, w1, w2, w3);
+    closing.push_back({Feature::kStraight, false, drawer.lead_m(), 0.0, lead_w});
+    std::vector<Piece> lap = open;
+    lap.insert(lap.end(), closing.begin(), closing.end());
+    if (longest_straight(lap) > kMaxStraightM) continue;
+
+    // the closing path must keep clear of the rest and end on the start pose
+    Turtle t = end;
+    const std::vector<Sample> fresh = lay_pieces(closing, kCheckStepM, t);
+    if (t.position.norm() > 1e-4 || std::abs(core::normalize_angle(t.heading)) > 1e-6) continue;
+    if (!keeps_clearance(laid, fresh, t.s_m)) continue;
+    return lap;
+  }
+  return std::nullopt;
+}
+
+// the sampled centre line of a lap with widths blended at the joins between pieces
+std::vector<Sample> sample_lap(const std::vector<Piece>& lap) {
+  Turtle t;
+  std::vector<Sample> samples = lay_pieces(lap, kSampleStepM, t);
+  const size_t n = samples.size();
+  const double lap_m = t.s_m;
+
+  // moving average of the width over +- kWidthBlendM (piecewise constant -> linear ramps)
+  std::vector<double> w(n);
+  const int half = static_cast<int>(std::round(kWidthBlendM / kSampleStepM));
+  double sum = 0.0;
+  for (int k = -half; k <= half; ++k) sum += samples[(k + n) % n].width_m;
+  for (size_t i = 0; i < n; ++i) {
+    w[i] = sum / (2 * half + 1);
+    sum += samples[(i + half + 1) % n].width_m - samples[(i + n - half) % n].width_m;
+  }
+  for (size_t i = 0; i < n; ++i) samples[i].width_m = w[i];
+  (void)lap_m;
+  return samples;
+}
+
+// the centre-line sample interpolated at distance s (wrapped around the lap)
+Sample sample_at(const std::vector<Sample>& samples, double lap_m, double s) {
+  s = std::fmod(s, lap_m);
+  if (s < 0.0) s += lap_m;
+  const auto it = std::upper_bound(samples.begin(), samples.end(), s,
+                                   [](double v, const Sample& x) { return v < x.s_m; });
+  const size_t i1 = static_cast<size_t>(it - samples.begin());
+  const size_t i0 = i1 - 1;
+  const Sample& a = samples[i0];
+  const Sample& b = samples[i1 % samples.size()];
+  const double s1 = i1 < samples.size() ? b.s_m : lap_m;
+  const double f = s1 > a.s_m ? (s - a.s_m) / (s1 - a.s_m) : 0.0;
+  Sample out = a;
+  out.position = a.position + f * (b.position - a.position);
+  out.width_m = a.width_m + f * (b.width_m - a.width_m);
+  out.s_m = s;
+  return out;
+}
+
+// left normal of a heading
+Vec2 left_normal(double heading) { return {-std::sin(heading), std::cos(heading)}; }
+
+// cone spacing wanted where the centre line has this curvature
+double spacing_for(double curvature, double straight_spacing_m) {
+  const double k = std::abs(curvature);
+  const double f = std::clamp((k - kWideCurvature) / (kTightCurvature - kWideCurvature), 0.0, 1.0);
+  return straight_spacing_m + f * (std::min(kTightSpacingM, straight_spacing_m) - straight_spacing_m);
+}
+
+// cone positions along one boundary (side +1 left, -1 right): the boundary is walked from the
+// start line, and cones are put at equal steps of the integral of 1 / spacing so that no gap
+// along the boundary exceeds the local spacing
+std::vector<Vec2> place_boundary_cones(const std::vector<Sample>& samples, double start_s,
+                                       double side, double straight_spacing_m) {
+  // the boundary from the start line around the lap
+  const size_t n = samples.size();
+  size_t first = 0;
+  while (first < n && samples[first].s_m < start_s) ++first;
+  std::vector<Vec2> pts;
+  std::vector<double> density;  // cumulative cones per metre of boundary
+  pts.reserve(n + 1);
+  density.reserve(n + 1);
+  for (size_t k = 0; k <= n; ++k) {
+    const Sample& c = samples[(first + k) % n];
+    const Vec2 p = c.position + side * 0.5 * c.width_m * left_normal(c.heading);
+    if (pts.empty()) {
+      density.push_back(0.0);
+    } else {
+      const double step = (p - pts.back()).norm();
+      density.push_back(density.back() + step / spacing_for(c.curvature, straight_spacing_m));
+    }
+    pts.push_back(p);
+  }
+
+  // equal steps of the cumulative density, rounded up to a whole number of cones
+  const int cones = static_cast<int>(std::ceil(density.back() - 1e-9));
+  const double per_cone = density.back() / cones;
+  std::vector<Vec2> out;
+  out.reserve(cones);
+  size_t j = 0;
+  for (int i = 0; i < cones; ++i) {
+    const double target = i * per_cone;
+    while (j + 1 < density.size() && density[j + 1] < target) ++j;
+    const double span = density[j + 1] - density[j];
+    const double f = span > 0.0 ? std::clamp((target - density[j]) / span, 0.0, 1.0) : 0.0;
+    out.push_back(pts[j] + f * (pts[j + 1] - pts[j]));
+  }
+  return out;
+}
+
+// the Track of a lap: cones, lanes, start zone and the designed centre line
+Track build_track(const std::vector<Sample>& samples, double lap_m, uint64_t seed,
+                  const GeneratorParams& params) {
+  Track track;
+  track.name = "generated-" + std::to_string(seed);
+  track.closed = true;
+  track.event = params.event;
+  track.start = Pose2{0.0, 0.0, 0.0};
+
+  // boundary cones, blue on the left and yellow on the right, in driving order from the line
+  for (const double side : {1.0, -1.0}) {
+    const ConeClass cls = side > 0.0 ? ConeClass::kBlue : ConeClass::kYellow;
+    std::vector<int>& lane = side > 0.0 ? track.left_lane : track.right_lane;
+    for (const Vec2& p : place_boundary_cones(samples, kStartLineM, side, params.cone_spacing_m)) {
+      const int id = static_cast<int>(track.cones.size());
+      track.cones.push_back({id, cls, p, std::nullopt});
+      lane.push_back(id);
+    }
+  }
+
+  // big orange cones either side of the start line, just outside the boundaries
+  for (const double along : {-kBigConeHalfGapM, kBigConeHalfGapM}) {
+    const Sample c = sample_at(samples, lap_m, kStartLineM + along);
+    for (const double side : {1.0, -1.0}) {
+      const Vec2 p = c.position +
+                     side * (0.5 * c.width_m + kBigConeOutsideM) * left_normal(c.heading);
+      track.cones.push_back({static_cast<int>(track.cones.size()), ConeClass::kOrangeBig, p,
+                             std::nullopt});
+    }
+  }
+
+  // the time-keeping gate on the start line
+  const Sample line = sample_at(samples, lap_m, kStartLineM);
+  const Vec2 post = (0.5 * line.width_m + kGatePostOutsideM) * left_normal(line.heading);
+  track.timing_gates.push_back({line.position + post, line.position - post});
+
+  // the designed centre line every ~1 m from the start line
+  const int points = std::max(3, static_cast<int>(std::round(lap_m)));
+  track.centre_line.reserve(points);
+  for (int i = 0; i < points; ++i)
+    track.centre_line.push_back(sample_at(samples, lap_m, kStartLineM + i * lap_m / points).position);
+  return track;
+}
+
+// checks the parameters; throws std::invalid_argument on a layout the rules cannot allow
+void validate(const GeneratorParams& params) {
+  const RuleLimits limits;
+  std::string error;
+  if (params.width_m < limits.min_width_m) error = "width_m below the 3 m minimum";
+  if (params.cone_spacing_m <= 0.0 || params.cone_spacing_m > limits.max_cone_spacing_m)
+    error = "cone_spacing_m must be in (0, 5] m";
+  if (params.max_lap_m - params.min_lap_m < 150.0 || params.min_lap_m < 100.0)
+    error = "lap range must span at least 150 m from at least 100 m";
+  if (params.event != EventType::kAutocross && params.event != EventType::kTrackdrive)
+    error = "the generator makes autocross and trackdrive circuits only";
+  if (params.max_attempts < 1) error = "max_attempts must be at least 1";
+  if (!error.empty()) throw std::invalid_argument("generate_circuit: " + error);
+}
+
+}  // namespace
+
+Track generate_circuit(uint64_t seed, const GeneratorParams& params) {
+  return generate_circuit(seed, params, nullptr);
+}
+
+Track generate_circuit(uint64_t seed, const GeneratorParams& params, GenerationReport* report) {
+  validate(params);
+  GenerationReport local;
+  GenerationReport& r = report ? *report : local;
+  r = {};
+  for (int attempt = 0; attempt < params.max_attempts; ++attempt) {
+    ++r.attempts;
+    Rng rng(core::derive_seed(seed, static_cast<uint64_t>(attempt)));
+
+    // draw the open part, close it, and sample the lap
+    LayoutDrawer drawer(rng, params);
+    std::optional<std::vector<Piece>> open = drawer.draw_open_part();
+    std::optional<std::vector<Piece>> lap;
+    if (open) lap = close_loop(drawer, std::move(*open), params);
+    if (!lap) {
+      ++r.rejected_geometry;
+      continue;
+    }
+    const std::vector<Sample> samples = sample_lap(*lap);
+    double lap_m = 0.0;
+    for (const Piece& p : *lap) lap_m += p.length_m;
+
+    // cones and the rest, then the rule checker as the final gate
+    Track track = build_track(samples, lap_m, seed, params);
+    if (!is_compliant(check_rules(track, params.event))) {
+      ++r.rejected_rules;
+      continue;
+    }
+    return track;
+  }
+  throw std::runtime_error("generate_circuit: no compliant layout for seed " +
+                           std::to_string(seed) + " in " + std::to_string(params.max_attempts) +
+                           " attempts");
+}
+
+}  // namespace conesim::tracks
