@@ -10,13 +10,6 @@ namespace conesim::tracks {
 
 namespace {
 
-constexpr std::array<std::pair<EventType, std::string_view>, 4> kEventNames{{
-    {EventType::kSkidpad, "skidpad"},
-    {EventType::kAcceleration, "acceleration"},
-    {EventType::kAutocross, "autocross"},
-    {EventType::kTrackdrive, "trackdrive"},
-}};
-
 // nearest point to p on the polyline pts (closed: the last point joins the first)
 Vec2 nearest_on_polyline(const Vec2& p, const std::vector<Vec2>& pts, bool closed) {
   Vec2 best = pts.front();
@@ -70,18 +63,6 @@ std::vector<Vec2> resample(const std::vector<Vec2>& pts, bool closed, double spa
 }
 
 }  // namespace
-
-std::string_view to_string(EventType e) {
-  for (const auto& [ev, name] : kEventNames)
-    if (ev == e) return name;
-  return "trackdrive";
-}
-
-std::optional<EventType> event_from_string(std::string_view name) {
-  for (const auto& [ev, n] : kEventNames)
-    if (n == name) return ev;
-  return std::nullopt;
-}
 
 const Cone& Track::cone(int id) const {
   for (const Cone& c : cones)

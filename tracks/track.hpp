@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/cone.hpp"
+#include "core/event.hpp"
 #include "core/geometry.hpp"
 
 namespace conesim::tracks {
@@ -17,14 +18,9 @@ using core::ConeClass;
 using core::Pose2;
 using core::Vec2;
 
-/// The four FSG dynamic events.
-enum class EventType { kSkidpad, kAcceleration, kAutocross, kTrackdrive };
-
-/// Event name as used on the command line and in scenarios: skidpad, acceleration, ...
-std::string_view to_string(EventType e);
-
-/// Parses an event name; nullopt when it is not one of the four.
-std::optional<EventType> event_from_string(std::string_view name);
+using core::EventType;
+using core::event_from_string;
+using core::to_string;
 
 /// One cone of the layout.
 struct Cone {
