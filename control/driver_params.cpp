@@ -1,0 +1,34 @@
+#include <cmath>
+#include <sstream>
+
+#include "control/driver.hpp"
+
+namespace conesim::control {
+
+std::string DriverParams::validate() const {
+  const std::pair<const char*, double> positive[] = {
+      {"explore_speed_mps", explore_speed_mps},
+      {"fast_speed_mps", fast_speed_mps},
+      {"acceleration_speed_mps", acceleration_speed_mps},
+      {"skidpad_speed_mps", skidpad_speed_mps},
+      {"max_lateral_accel_mps2", max_lateral_accel_mps2},
+      {"max_accel_mps2", max_accel_mps2},
+      {"max_decel_mps2", max_decel_mps2},
+      {"lookahead_min_m", lookahead_min_m},
+      {"lookahead_gain_s", lookahead_gain_s},
+      {"assumed_half_width_m", assumed_half_width_m},
+  };
+  for (const auto& [key, value] : positive) {
+    if (!std::isfinite(value) || value <= 0.0 || value > 1000.0) {
+      std::ostringstream s;
+      s << key << ": expected a positive number below 1000, got " << value;
+      return s.str();
+    }
+  }
+  if (trackdrive_laps < 1 || trackdrive_laps > 100)
+    return "trackdrive_laps: expected a lap count from 1 to 100, got " +
+           std::to_string(trackdrive_laps);
+  return {};
+}
+
+}  // namespace conesim::control
