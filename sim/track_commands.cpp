@@ -106,7 +106,8 @@ void write_track_atomically(const Track& track, const fs::path& out) {
   }
 }
 
-void plot_track(const Track& track, std::optional<EventType> event, const fs::path& out_png) {
+void plot_track(const Track& track, std::optional<EventType> event, const fs::path& out_png,
+                const PlotOverlay* overlay) {
   using core::ConeClass;
   const EventType ev = event.value_or(tracks::infer_event(track));
 
@@ -161,7 +162,26 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
                              arrow_m * std::sin(track.start.yaw)}}});
   plots << ", $start using 1:2:3:4 with vectors filled head lw 3 lc rgb '#000000' title 'start'";
 
-  const auto violations = tracks::check_rules(track, ev);
+  // a run: the driven path and the knocked cones; a bare track: its rule violations
+  if (overlay) {
+    PlotData path{"driven", {}};
+    for (const auto& p : overlay->driven_path) path.rows.push_back({p.x(), p.y()});
+    if (!path.rows.empty()) {
+      data.push_back(path);
+      plots << ", $driven using 1:2 with lines lw 2 lc rgb '#d62728' title 'driven path'";
+    }
+    PlotData knocked{"knocked", {}};
+    for (int id : overlay->knocked_cones)
+      knocked.rows.push_back({track.cone(id).position.x(), track.cone(id).position.y()});
+    if (!knocked.rows.empty()) {
+      data.push_back(knocked);
+      plots << ", $knocked using 1:2 with points pt 2 ps 3 lw 3 lc rgb '#000000' title '"
+            << knocked.rows.size() << " cone" << (knocked.rows.size() == 1 ? "" : "s")
+            << " knocked over'";
+    }
+  }
+  const auto violations =
+      overlay ? std::vector<tracks::Violation>{} : tracks::check_rules(track, ev);
   PlotData viol{"violations", {}};
   for (const auto& v : violations) viol.rows.push_back({v.where.x(), v.where.y()});
   if (!viol.rows.empty()) {
@@ -173,11 +193,16 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
 
   // the figure: equal axis scales, legend outside
   std::ostringstream script;
-  std::string title = track.name;
-  for (char& ch : title)
-    if (ch == '\'') ch = ' ';
-  script << "set title '" << title << " (" << tracks::to_string(ev) << ", "
-         << track.cones.size() << " cones)' noenhanced\n"
+  // title text goes inside double quotes: drop characters that would end or escape it
+  auto clean = [](std::string text) {
+    for (char& ch : text)
+      if (ch == '"' || ch == '\\') ch = ' ';
+    return text;
+  };
+  script << "set title \"" << clean(track.name) << " (" << tracks::to_string(ev) << ", "
+         << track.cones.size() << " cones)"
+         << (overlay && !overlay->subtitle.empty() ? "\\n" + clean(overlay->subtitle) : "")
+         << "\" noenhanced\n"
          << "set size ratio -1\nset grid\nset key outside right top\n"
          << "set xlabel 'x [m]'\nset ylabel 'y [m]'\n"
          << "plot " << plots.str() << "\n";

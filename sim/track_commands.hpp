@@ -36,9 +36,20 @@ tracks::Track make_event_track(tracks::EventType event, uint64_t seed);
 /// Writes a track by the output's extension, all or nothing (a temporary file is renamed).
 void write_track_atomically(const tracks::Track& track, const std::filesystem::path& out);
 
-/// Plots the track with gnuplot: cones in their colours, lanes, centre line, start pose,
-/// gates and rule violations marked.
+/// What a run adds on top of the track in its top-down figure.
+struct PlotOverlay {
+  /// The path the car drove (true positions).
+  std::vector<core::Vec2> driven_path;
+  /// Ids of the cones knocked over.
+  std::vector<int> knocked_cones;
+  /// A line under the title (result summary).
+  std::string subtitle;
+};
+
+/// Plots the track with gnuplot: cones in their colours, lanes, centre line, start pose and
+/// gates; rule violations marked when there is no overlay, the driven path and knocked cones
+/// when there is one.
 void plot_track(const tracks::Track& track, std::optional<tracks::EventType> event,
-                const std::filesystem::path& out_png);
+                const std::filesystem::path& out_png, const PlotOverlay* overlay = nullptr);
 
 }  // namespace conesim::sim

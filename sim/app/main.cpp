@@ -4,9 +4,18 @@
 #include <exception>
 #include <iostream>
 
+#include <unistd.h>
+
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
 #include "core/error.hpp"
+#include "sim/regress.hpp"
+#include "sim/run.hpp"
+#include "sim/scenario.hpp"
 #include "sim/track_commands.hpp"
 #include "tracks/io.hpp"
+#include "vehicle_models/steering.hpp"
 
 namespace {
 
@@ -107,6 +116,123 @@ void add_track_commands(CLI::App& app, int& status) {
   }
 }
 
+// `conesim run SCENARIO ...`
+void add_run_command(CLI::App& app, int& status) {
+  auto* cmd = app.add_subcommand("run", "Run one scenario in closed loop and score it");
+  auto scenario = std::make_shared<std::string>();
+  auto track = std::make_shared<fs::path>();
+  auto seed = std::make_shared<uint64_t>();
+  auto out = std::make_shared<fs::path>();
+  auto sets = std::make_shared<std::vector<std::string>>();
+  auto no_plot = std::make_shared<bool>(false);
+  cmd->add_option("SCENARIO", *scenario,
+                  "Scenario file, or the name of a shipped one (skidpad, acceleration, "
+                  "autocross, trackdrive)")
+      ->required();
+  cmd->add_option("--track", *track, "Run on this track file instead of the scenario's");
+  auto* seed_opt = cmd->add_option("--seed", *seed, "Seed (also the generated circuit's)");
+  cmd->add_option("--out", *out, "Run directory (default runs/<name>-<UTC stamp>)");
+  cmd->add_option("--set", *sets, "Override a scenario value: key.path=value (repeatable)");
+  cmd->add_flag("--no-plot", *no_plot, "Skip the PNG (no gnuplot run)");
+  cmd->callback([=, &status] {
+    namespace sim = conesim::sim;
+    const fs::path file = sim::find_scenario(*scenario);
+    std::vector<std::string> overrides = *sets;
+    if (seed_opt->count() > 0) overrides.insert(overrides.begin(), "seed=" + std::to_string(*seed));
+    sim::Scenario s = sim::load_scenario(file, overrides);
+    if (!track->empty()) {
+      s.track.file = *track;
+      s.track.generate_seed.reset();
+    }
+    const conesim::tracks::Track t = sim::scenario_track(s);
+
+    sim::RunOptions options;
+    options.plot = !*no_plot;
+    if (out->empty()) {
+      options.out_dir = sim::make_run_dir("runs", s.name);
+    } else {
+      options.out_dir = *out;
+    }
+    // the live progress line only on a terminal
+    const bool tty = isatty(STDERR_FILENO);
+    if (tty) {
+      options.on_progress = [&s](const sim::Progress& p) {
+        std::fprintf(stderr, "\r%s  lap %d/%d  t %.1f s  %.0fx real time  %s\033[K",
+                     std::string(conesim::core::to_string(s.event)).c_str(), p.laps,
+                     p.laps_target, p.sim_time_s, p.real_time_factor, p.driver_state.c_str());
+      };
+    }
+    const sim::RunResult r = sim::run_scenario(s, t, options);
+    if (tty) std::fprintf(stderr, "\r\033[K");
+
+    // one summary on stdout
+    const auto& ref = r.referee;
+    std::printf("%s on %s (seed %llu): %s", std::string(conesim::core::to_string(s.event)).c_str(),
+                t.name.c_str(), static_cast<unsigned long long>(s.seed),
+                ref.completed ? "completed" : ("DNF (" + ref.dnf_reason + ")").c_str());
+    std::printf(", %d laps, %.3f s, %zu cones hit, %d off-course, %.0fx real time\n", ref.laps,
+                ref.final_time_s, ref.cones_hit.size(), ref.off_course,
+                r.sim_time_s / std::max(r.wall_time_s, 1e-9));
+    for (const auto& f : r.failures) std::printf("fail: %s\n", f.c_str());
+    std::printf("%s\n", options.out_dir.string().c_str());
+    status = r.passed ? 0 : 1;
+  });
+}
+
+// `conesim regress ...`
+void add_regress_command(CLI::App& app, int& status, const char* argv0) {
+  auto* cmd = app.add_subcommand("regress", "Run the shipped scenarios over several seeds");
+  auto jobs = std::make_shared<int>(2);
+  auto scenarios = std::make_shared<std::vector<std::string>>();
+  auto out = std::make_shared<fs::path>();
+  cmd->add_option("SCENARIO", *scenarios, "Scenarios to run (default: all four events)");
+  cmd->add_option("--jobs,-j", *jobs, "Runs at once")->check(CLI::Range(1, 64));
+  cmd->add_option("--out", *out, "Folder of the runs (default runs/regress-<UTC stamp>)");
+  cmd->callback([=, &status] {
+    namespace sim = conesim::sim;
+    for (const auto& name : *scenarios) sim::find_scenario(name);  // fail early on a typo
+    const fs::path dir = out->empty() ? sim::make_run_dir("runs", "regress") : *out;
+    std::error_code ec;
+    fs::path self = fs::read_symlink("/proc/self/exe", ec);
+    if (ec) self = fs::absolute(argv0);
+    const int failed =
+        sim::run_regression(self, sim::default_regression(*scenarios), *jobs, dir, std::cout);
+    std::cout << dir.string() << "\n";
+    status = failed == 0 ? 0 : 1;
+  });
+}
+
+// `conesim vehicle inspect FILE --steer RAD`
+void add_vehicle_commands(CLI::App& app) {
+  auto* vehicle = app.add_subcommand("vehicle", "Vehicle parameter sets");
+  vehicle->require_subcommand(1);
+  auto* cmd = vehicle->add_subcommand(
+      "inspect", "Print the wheel angles and turn radius for a single-track steering angle");
+  auto file = std::make_shared<std::string>();
+  auto steer = std::make_shared<double>(0.0);
+  cmd->add_option("FILE", *file, "Vehicle YAML file, or 'default'")->required();
+  cmd->add_option("--steer", *steer, "Single-track steering angle, radians (positive left)")
+      ->required();
+  cmd->callback([=] {
+    const auto p = *file == "default" ? conesim::vehicle_models::VehicleParams{}
+                                      : conesim::sim::load_vehicle(*file);
+    if (!std::isfinite(*steer) || std::abs(*steer) > p.max_steer_rad)
+      throw conesim::core::InputError("--steer", 0,
+                                      "expected an angle within the steering limit of +-" +
+                                          std::to_string(p.max_steer_rad) + " rad");
+    const auto w = conesim::vehicle_models::split_steering(*steer, p);
+    const double radius = conesim::vehicle_models::turn_radius_m(*steer, p.wheelbase_m);
+    nlohmann::json j = {{"vehicle", p.name},
+                        {"steer_rad", *steer},
+                        {"ackermann_factor", p.ackermann_factor},
+                        {"left_wheel_rad", w.left_rad},
+                        {"right_wheel_rad", w.right_rad},
+                        {"turn_radius_m", std::isfinite(radius) ? nlohmann::json(radius)
+                                                                : nlohmann::json(nullptr)}};
+    std::cout << j.dump(2) << "\n";
+  });
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -115,6 +241,9 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   int status = 0;
   add_track_commands(app, status);
+  add_run_command(app, status);
+  add_regress_command(app, status, argv[0]);
+  add_vehicle_commands(app);
 
   try {
     app.parse(argc, argv);

@@ -1,0 +1,254 @@
+#include "sim/run.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <numbers>
+#include <stdexcept>
+
+#include "control/driver.hpp"
+#include "sim/track_commands.hpp"
+#include "sim/vehicle_sim.hpp"
+#include "tracks/io.hpp"
+
+namespace conesim::sim {
+
+namespace fs = std::filesystem;
+using core::TimeUs;
+
+namespace {
+
+// a run never goes on longer than the longest event limit plus this margin, sim seconds
+constexpr double kHardStopMarginS = 60.0;
+// rows of trajectory.csv per sim second
+constexpr double kTrajectoryRateHz = 20.0;
+
+double round_to(double v, double step) { return std::round(v / step) * step; }
+
+// writes text to a file all at once: a temporary file renamed into place
+void write_file_atomically(const fs::path& file, const std::string& text) {
+  const fs::path partial = file.parent_path() / (".partial-" + file.filename().string());
+  {
+    std::ofstream out(partial, std::ios::binary);
+    out << text;
+    if (!out) throw std::runtime_error(partial.string() + ": cannot write");
+  }
+  fs::rename(partial, file);
+}
+
+// the longest a run of this event may take before the referee must have ruled
+double hard_stop_s(const Scenario& s) {
+  const RefereeParams& r = s.referee;
+  double limit = r.timeout_trackdrive_total_s;
+  switch (s.event) {
+    case core::EventType::kAcceleration: limit = r.timeout_acceleration_s; break;
+    case core::EventType::kSkidpad: limit = r.timeout_skidpad_s; break;
+    case core::EventType::kAutocross: limit = r.timeout_autocross_s; break;
+    case core::EventType::kTrackdrive: break;
+  }
+  return limit + r.stuck_time_s + kHardStopMarginS;
+}
+
+// the pass criteria, one line per failure
+std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResult& r) {
+  std::vector<std::string> failures;
+  if (pass.completed && !r.completed)
+    failures.push_back("not completed" + (r.dnf_reason.empty() ? "" : ": " + r.dnf_reason));
+  if (static_cast<int>(r.cones_hit.size()) > pass.max_cones_hit)
+    failures.push_back(std::to_string(r.cones_hit.size()) + " cones hit, at most " +
+                       std::to_string(pass.max_cones_hit) + " allowed");
+  if (r.off_course > pass.max_off_course)
+    failures.push_back(std::to_string(r.off_course) + " off-course, at most " +
+                       std::to_string(pass.max_off_course) + " allowed");
+  if (pass.max_final_time_s > 0.0 && r.final_time_s > pass.max_final_time_s)
+    failures.push_back("final time " + std::to_string(r.final_time_s) + " s over " +
+                       std::to_string(pass.max_final_time_s) + " s");
+  return failures;
+}
+
+}  // namespace
+
+tracks::Track scenario_track(const Scenario& s) {
+  if (s.track.file) return tracks::read_track(*s.track.file);
+  return make_event_track(s.event, s.track.generate_seed.value_or(s.seed));
+}
+
+core::ConeObservations perceive_ground_truth(const tracks::Track& track, const core::Pose2& pose,
+                                             const SensorSettings& sensors,
+                                             const std::function<bool(int)>& is_knocked,
+                                             std::vector<int>* ids) {
+  core::ConeObservations obs;
+  const double range2 = sensors.cone_range_m * sensors.cone_range_m;
+  const double half_fov = 0.5 * sensors.cone_fov_deg * std::numbers::pi / 180.0;
+  for (const tracks::Cone& cone : track.cones) {
+    const core::Vec2 local = pose.inverse_transform(cone.position);
+    if (local.squaredNorm() > range2) continue;
+    if (std::abs(std::atan2(local.y(), local.x())) > half_fov) continue;
+    if (is_knocked && is_knocked(cone.id)) continue;
+    core::ConeObservation o;
+    o.position = local;
+    o.cls = cone.cls;
+    o.covariance = Eigen::Matrix2d::Identity() * 1e-6;
+    obs.cones.push_back(o);
+    if (ids) ids->push_back(cone.id);
+  }
+  return obs;
+}
+
+RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunOptions& options) {
+  using clock = std::chrono::steady_clock;
+  const auto wall_start = clock::now();
+  fs::create_directories(options.out_dir);
+  // a metrics.json from an earlier run in the same folder would look like this run's result
+  fs::remove(options.out_dir / "metrics.json");
+
+  // the world: the car with its front wing on the start pose, the referee and the driver
+  const vehicle_models::VehicleParams& vp = s.vehicle;
+  const core::Pose2 rear_axle_start =
+      track.start.compose({-vp.front_overhang_from_rear_axle_m, 0.0, 0.0});
+  VehicleSim car(vp, rear_axle_start);
+  RefereeParams referee_params = s.referee;
+  referee_params.trackdrive_laps = s.driver.trackdrive_laps;
+  Referee referee(track, s.event, vp, referee_params);
+  std::vector<core::MapCone> prior_map;
+  if (s.event == core::EventType::kSkidpad) {
+    // skidpad is driven from its known layout
+    for (const tracks::Cone& c : track.cones) prior_map.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
+  }
+  control::Driver driver(s.event, s.driver, {vp.wheelbase_m, vp.max_steer_rad}, prior_map);
+
+  // the schedule on the integer clock
+  const TimeUs step_us = core::from_seconds(car.timestep_s());
+  const TimeUs driver_period_us = core::from_seconds(1.0 / s.sensors.driver_rate_hz);
+  const TimeUs trajectory_period_us = core::from_seconds(1.0 / kTrajectoryRateHz);
+  const TimeUs hard_stop_us = core::from_seconds(hard_stop_s(s));
+  const int laps_target = s.event == core::EventType::kTrackdrive ? s.driver.trackdrive_laps
+                          : s.event == core::EventType::kSkidpad  ? 4
+                                                                  : 1;
+
+  // what the car has seen so far: with ground-truth perception and no SLAM, the map is the
+  // true position of every cone seen once
+  std::vector<char> seen(static_cast<size_t>(track.next_id()), 0);
+  std::vector<core::MapCone> map;
+  std::vector<core::Vec2> driven;
+  std::string trajectory = "t_s,x_m,y_m,yaw_rad,speed_mps,steer_rad,accel_cmd_mps2\n";
+  auto is_knocked = [&referee](int id) { return referee.is_knocked(id); };
+
+  TimeUs t = 0;
+  core::VehicleCommand command;
+  auto last_progress = wall_start;
+  std::string dnf_override;
+  while (!referee.finished()) {
+    if (t % driver_period_us == 0) {
+      // perceive, estimate, drive
+      const VehicleTruth truth = car.truth();
+      if (!std::isfinite(truth.pose.x) || !std::isfinite(truth.pose.y)) {
+        dnf_override = "physics diverged";
+        break;
+      }
+      std::vector<int> ids;
+      core::ConeObservations obs = perceive_ground_truth(track, truth.pose, s.sensors, is_knocked, &ids);
+      obs.stamp = t;
+      for (size_t i = 0; i < ids.size(); ++i) {
+        if (seen[ids[i]]) continue;
+        seen[ids[i]] = 1;
+        const tracks::Cone& c = track.cone(ids[i]);
+        map.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
+      }
+      core::Estimate estimate;
+      estimate.stamp = t;
+      estimate.pose = truth.pose;
+      estimate.speed_mps = truth.vx_mps;
+      estimate.yaw_rate_rps = truth.yaw_rate_rps;
+      estimate.map = map;
+      command = driver.update({estimate, obs});
+
+      // progress a few times per wall second
+      if (options.on_progress && clock::now() - last_progress > std::chrono::milliseconds(250)) {
+        last_progress = clock::now();
+        const double wall = std::chrono::duration<double>(last_progress - wall_start).count();
+        options.on_progress({core::to_seconds(t), core::to_seconds(t) / std::max(wall, 1e-9),
+                             referee.laps(), laps_target, driver.status().state});
+      }
+    }
+    if (t % trajectory_period_us == 0) {
+      const VehicleTruth truth = car.truth();
+      driven.push_back(truth.pose.position());
+      char row[200];
+      std::snprintf(row, sizeof(row), "%.3f,%.4f,%.4f,%.5f,%.3f,%.5f,%.3f\n", core::to_seconds(t),
+                    truth.pose.x, truth.pose.y, truth.pose.yaw, truth.vx_mps, truth.steer_rad,
+                    command.accel_mps2);
+      trajectory += row;
+    }
+    car.step(command);
+    t += step_us;
+    referee.update(t, car.truth());
+    if (t >= hard_stop_us) {
+      dnf_override = "no verdict within the event's time limit";
+      break;
+    }
+  }
+  const double wall_s = std::chrono::duration<double>(clock::now() - wall_start).count();
+
+  // the verdict and the pass criteria
+  RunResult result;
+  result.referee = referee.result();
+  if (!dnf_override.empty() && result.referee.dnf_reason.empty()) {
+    result.referee.completed = false;
+    result.referee.dnf_reason = dnf_override;
+  }
+  result.failures = check_pass(s.pass, result.referee);
+  result.passed = result.failures.empty();
+  result.sim_time_s = core::to_seconds(t);
+  result.wall_time_s = wall_s;
+  result.driver_laps = driver.status().laps_counted;
+
+  // metrics.json (the contract in ARCHITECTURE.md)
+  const RefereeResult& r = result.referee;
+  std::vector<double> lap_times;
+  for (double lt : r.lap_times_s) lap_times.push_back(round_to(lt, 1e-3));
+  nlohmann::json m = {
+      {"scenario", s.name},
+      {"event", std::string(core::to_string(s.event))},
+      {"track", track.name},
+      {"seed", s.seed},
+      {"perception", s.perception},
+      {"slam_driving", s.slam},
+      {"completed", r.completed},
+      {"dnf_reason", r.dnf_reason},
+      {"laps", r.laps},
+      {"driver_laps", result.driver_laps},
+      {"lap_times_s", lap_times},
+      {"penalties",
+       {{"cones_hit", r.cones_hit.size()},
+        {"cones_hit_ids", r.cones_hit},
+        {"off_course", r.off_course},
+        {"penalty_time_s", round_to(r.final_time_s - r.raw_time_s, 1e-3)}}},
+      {"raw_time_s", round_to(r.raw_time_s, 1e-3)},
+      {"final_time_s", round_to(r.final_time_s, 1e-3)},
+      {"sim_time_s", round_to(result.sim_time_s, 1e-3)},
+      {"wall_time_s", round_to(wall_s, 1e-3)},
+      {"real_time_factor", round_to(result.sim_time_s / std::max(wall_s, 1e-9), 0.1)},
+      {"passed", result.passed},
+      {"pass_failures", result.failures},
+      {"slam", nlohmann::json::object()},
+  };
+  result.metrics = m;
+
+  // the other outputs first, metrics.json last: a run without it did not finish
+  write_file_atomically(options.out_dir / "trajectory.csv", trajectory);
+  tracks::write_eufs_csv(track, options.out_dir / "track.csv");
+  if (options.plot) {
+    PlotOverlay overlay{driven, r.cones_hit, ""};
+    char summary[200];
+    std::snprintf(summary, sizeof(summary), "%s, %d laps, %.2f s, %zu cones hit, %d off-course",
+                  r.completed ? "completed" : ("DNF: " + r.dnf_reason).c_str(), r.laps,
+                  r.final_time_s, r.cones_hit.size(), r.off_course);
+    overlay.subtitle = summary;
+    plot_track(track, s.event, options.out_dir / "run.png", &overlay);
+  }
+  write_file_atomically(options.out_dir / "metrics.json", m.dump(2) + "\n");
+  return result;
+}
+
+}  // namespace conesim::sim

@@ -1,0 +1,66 @@
+#pragma once
+// One closed-loop run: world (MuJoCo car on the track), referee, perception, estimate, driver;
+// then the outputs in the run directory.
+
+#include <chrono>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/autonomy_types.hpp"
+#include "sim/referee.hpp"
+#include "sim/scenario.hpp"
+#include "tracks/track.hpp"
+
+namespace conesim::sim {
+
+/// What the progress line shows, handed out a few times per wall-clock second.
+struct Progress {
+  double sim_time_s = 0.0;
+  double real_time_factor = 0.0;
+  int laps = 0;
+  int laps_target = 0;
+  std::string driver_state;
+};
+
+/// How to run (not part of the scenario: it does not change the result).
+struct RunOptions {
+  /// The run directory to write; created if missing.
+  std::filesystem::path out_dir;
+  /// Called about four times per wall-clock second when set.
+  std::function<void(const Progress&)> on_progress;
+  /// Write the top-down PNG (needs gnuplot).
+  bool plot = true;
+};
+
+/// The outcome of a run.
+struct RunResult {
+  RefereeResult referee;
+  bool passed = false;
+  /// Why the pass criteria failed, one line each.
+  std::vector<std::string> failures;
+  double sim_time_s = 0.0;
+  double wall_time_s = 0.0;
+  int driver_laps = 0;
+  nlohmann::json metrics;
+};
+
+/// Builds the track a scenario asks for (its file, the FSG layout or a generated circuit).
+tracks::Track scenario_track(const Scenario& scenario);
+
+/// The cones a perfect sensor sees from the vehicle pose: within range and field of view, not
+/// knocked over, in the vehicle frame; `ids` receives each observation's true cone id.
+core::ConeObservations perceive_ground_truth(const tracks::Track& track, const core::Pose2& pose,
+                                             const SensorSettings& sensors,
+                                             const std::function<bool(int)>& is_knocked,
+                                             std::vector<int>* ids = nullptr);
+
+/// Runs the scenario on the track to the referee's verdict and writes metrics.json (last, so a
+/// run that stops early leaves none), trajectory.csv, track.csv and run.png to options.out_dir.
+RunResult run_scenario(const Scenario& scenario, const tracks::Track& track,
+                       const RunOptions& options);
+
+}  // namespace conesim::sim

@@ -1,0 +1,81 @@
+#pragma once
+// Scenarios: what to run (event, track, vehicle, seed, perception, SLAM, driver, sensors) and
+// what counts as a pass. Read from YAML here, at the edge; the rest of conesim sees structs.
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "control/driver.hpp"
+#include "core/event.hpp"
+#include "sim/referee.hpp"
+#include "vehicle_models/vehicle_params.hpp"
+
+namespace conesim::sim {
+
+/// Where the track comes from: a file, or the FSG layout / a generated circuit.
+struct TrackSource {
+  /// A track file (any format tracks::read_track reads); relative paths are resolved against
+  /// the scenario file's folder, then the working directory.
+  std::optional<std::filesystem::path> file;
+  /// Seed of a generated circuit (autocross, trackdrive); defaults to the scenario seed.
+  std::optional<uint64_t> generate_seed;
+};
+
+/// Rates and ranges of what the car perceives (the cone sensor and the schedule).
+struct SensorSettings {
+  /// How often perception, SLAM and the driver run, Hz (a divisor of 1 MHz).
+  double driver_rate_hz = 20.0;
+  /// Perfect perception: cones within this range and field of view are seen.
+  double cone_range_m = 20.0;
+  double cone_fov_deg = 200.0;
+};
+
+/// What a run must achieve to pass.
+struct PassCriteria {
+  bool completed = true;
+  int max_cones_hit = 0;
+  int max_off_course = 0;
+  /// Upper bound of the final time, seconds (0: none).
+  double max_final_time_s = 0.0;
+};
+
+/// One scenario, fully resolved.
+struct Scenario {
+  std::string name;
+  core::EventType event = core::EventType::kTrackdrive;
+  TrackSource track;
+  /// "default" or a vehicle YAML file.
+  std::string vehicle_source = "default";
+  vehicle_models::VehicleParams vehicle;
+  uint64_t seed = 1;
+  /// ground_truth (later: cone_sensor, lidar, stereo, fused).
+  std::string perception = "ground_truth";
+  /// none (later: graph, ekf, fastslam1, fastslam2).
+  std::string slam = "none";
+  control::DriverParams driver;
+  SensorSettings sensors;
+  RefereeParams referee;
+  PassCriteria pass;
+  /// Where the scenario was read from (empty for a built-in default).
+  std::filesystem::path source_file;
+};
+
+/// Finds a scenario by file path or by the name of a shipped one (scenarios/<name>.yaml).
+/// Throws core::InputError when neither exists.
+std::filesystem::path find_scenario(const std::string& name_or_path);
+
+/// Reads a scenario file, applying `overrides` ("key.path=value", as --set gives them) before
+/// the values are checked. Throws core::InputError naming the file, line and key.
+Scenario load_scenario(const std::filesystem::path& file,
+                       const std::vector<std::string>& overrides = {});
+
+/// Reads a vehicle parameter file (keys of VehicleParams). Throws core::InputError.
+vehicle_models::VehicleParams load_vehicle(const std::filesystem::path& file);
+
+/// The folder of the shipped scenarios (next to the executable's source tree).
+std::filesystem::path shipped_scenarios_dir();
+
+}  // namespace conesim::sim

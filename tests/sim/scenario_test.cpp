@@ -1,0 +1,103 @@
+#include "sim/scenario.hpp"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "core/error.hpp"
+
+namespace conesim::sim {
+namespace {
+
+namespace fs = std::filesystem;
+
+// a scenario file in a fresh temporary folder
+class ScenarioFile : public ::testing::Test {
+ protected:
+  fs::path write(const std::string& text, const std::string& name = "s.yaml") {
+    dir_ = fs::temp_directory_path() / ("conesim-scenario-" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+    const fs::path p = dir_ / name;
+    std::ofstream(p) << text;
+    return p;
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // the message of the InputError that loading throws, or "" when it loads
+  std::string error_of(const std::string& text, const std::vector<std::string>& sets = {}) {
+    try {
+      load_scenario(write(text), sets);
+    } catch (const core::InputError& e) {
+      return e.what();
+    }
+    return "";
+  }
+  fs::path dir_;
+};
+
+TEST_F(ScenarioFile, ShippedScenariosLoadForAllFourEvents) {
+  for (const char* name : {"skidpad", "acceleration", "autocross", "trackdrive"}) {
+    const Scenario s = load_scenario(find_scenario(name));
+    EXPECT_EQ(core::to_string(s.event), name);
+    EXPECT_FALSE(s.track.file.has_value()) << name << " should run without a track file";
+  }
+  const Scenario td = load_scenario(find_scenario("trackdrive"));
+  EXPECT_EQ(td.track.generate_seed, td.seed);
+  EXPECT_EQ(td.driver.trackdrive_laps, 10);
+}
+
+TEST_F(ScenarioFile, OverridesApplyBeforeValidation) {
+  const fs::path p = write("event: trackdrive\nseed: 4\ntrack: {generate: {}}\n");
+  const Scenario s = load_scenario(p, {"seed=9", "driver.fast_speed_mps=12.5"});
+  EXPECT_EQ(s.seed, 9u);
+  EXPECT_EQ(s.track.generate_seed, 9u);
+  EXPECT_DOUBLE_EQ(s.driver.fast_speed_mps, 12.5);
+  EXPECT_NE(error_of("event: trackdrive\n", {"driver.fast_speed_mps=-1"}).find("fast_speed_mps"),
+            std::string::npos);
+  EXPECT_NE(error_of("event: trackdrive\n", {"nonsense"}).find("key.path=value"), std::string::npos);
+}
+
+TEST_F(ScenarioFile, BadInputNamesFileLineAndKey) {
+  // an unknown key, with its line and the keys that exist
+  const std::string unknown = error_of("event: autocross\ndriver:\n  top_speed: 3\n");
+  EXPECT_NE(unknown.find("s.yaml:3: driver.top_speed: unknown key"), std::string::npos) << unknown;
+  EXPECT_NE(unknown.find("explore_speed_mps"), std::string::npos);
+  // not a number, NaN, a bad event, malformed YAML, an empty file, a missing event
+  EXPECT_NE(error_of("event: autocross\nseed: abc\n").find("s.yaml:2: seed: expected a"),
+            std::string::npos);
+  EXPECT_NE(error_of("event: autocross\ndriver: {fast_speed_mps: .nan}\n").find("finite"),
+            std::string::npos);
+  EXPECT_NE(error_of("event: drag_race\n").find("s.yaml:1: event: expected skidpad"),
+            std::string::npos);
+  EXPECT_NE(error_of("event: [autocross\n").find("malformed YAML"), std::string::npos);
+  EXPECT_NE(error_of("").find("empty scenario"), std::string::npos);
+  EXPECT_NE(error_of("seed: 3\n").find("event: missing"), std::string::npos);
+  EXPECT_NE(error_of("event: autocross\nsensors: {driver_rate_hz: 33}\n").find("driver_rate_hz"),
+            std::string::npos);
+  EXPECT_NE(error_of("event: autocross\nvehicle: {mass_kg: -3}\n").find("mass_kg"),
+            std::string::npos);
+  EXPECT_NE(error_of("event: autocross\nperception: lidar\n").find("perception"),
+            std::string::npos);
+}
+
+TEST_F(ScenarioFile, UnknownScenarioNameListsTheShippedOnes) {
+  try {
+    find_scenario("trackdirve");
+    FAIL() << "a misspelt scenario was accepted";
+  } catch (const core::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("trackdrive"), std::string::npos);
+  }
+}
+
+TEST_F(ScenarioFile, DefaultVehicleFileMatchesTheBuiltInDefaults) {
+  const auto file = load_vehicle(fs::path(CONESIM_SOURCE_DIR) / "vehicle_models/params/default.yaml");
+  const vehicle_models::VehicleParams builtin;
+  EXPECT_EQ(file.name, builtin.name);
+  EXPECT_DOUBLE_EQ(file.mass_kg, builtin.mass_kg);
+  EXPECT_DOUBLE_EQ(file.ackermann_factor, builtin.ackermann_factor);
+  EXPECT_DOUBLE_EQ(file.max_power_w, builtin.max_power_w);
+  EXPECT_DOUBLE_EQ(file.suspension_travel_m, builtin.suspension_travel_m);
+}
+
+}  // namespace
+}  // namespace conesim::sim
