@@ -1,0 +1,68 @@
+// The closed loop end to end: MuJoCo car, referee, ground-truth perception and the driver.
+
+#include <gtest/gtest.h>
+
+#include "sim/run.hpp"
+#include "sim/scenario.hpp"
+
+namespace conesim::sim {
+namespace {
+
+namespace fs = std::filesystem;
+
+// runs a shipped scenario into a temporary folder, without the PNG
+RunResult run_shipped(const std::string& name, uint64_t seed, const std::string& tag,
+                      const std::vector<std::string>& sets = {}) {
+  std::vector<std::string> overrides = sets;
+  overrides.push_back("seed=" + std::to_string(seed));
+  const Scenario s = load_scenario(find_scenario(name), overrides);
+  RunOptions options;
+  options.out_dir = fs::temp_directory_path() / ("conesim-closed-loop-" + tag + "-" +
+                                                 std::to_string(::getpid()));
+  options.plot = false;
+  RunResult r = run_scenario(s, scenario_track(s), options);
+  EXPECT_TRUE(fs::exists(options.out_dir / "metrics.json"));
+  EXPECT_TRUE(fs::exists(options.out_dir / "trajectory.csv"));
+  EXPECT_TRUE(fs::exists(options.out_dir / "track.csv"));
+  fs::remove_all(options.out_dir);
+  return r;
+}
+
+// metrics without the keys that depend on the machine's speed
+nlohmann::json without_timing(nlohmann::json m) {
+  m.erase("wall_time_s");
+  m.erase("real_time_factor");
+  return m;
+}
+
+TEST(ClosedLoop, AccelerationCompletesInARealisticTime) {
+  const RunResult r = run_shipped("acceleration", 1, "accel");
+  EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
+  EXPECT_TRUE(r.referee.cones_hit.empty());
+  // 75 m from a standing start: 3.5-4.5 s for real FS cars, 3.75 s for this car at full power
+  EXPECT_GT(r.referee.raw_time_s, 3.5);
+  EXPECT_LT(r.referee.raw_time_s, 4.6);
+  EXPECT_TRUE(r.passed);
+}
+
+TEST(ClosedLoop, SkidpadCompletesFourLapsWithoutPenalties) {
+  const RunResult r = run_shipped("skidpad", 1, "skidpad");
+  EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
+  EXPECT_EQ(r.referee.lap_times_s.size(), 4u);
+  EXPECT_TRUE(r.referee.cones_hit.empty());
+  EXPECT_EQ(r.referee.off_course, 0);
+}
+
+TEST(ClosedLoop, AutocrossIsDeterministicBySeed) {
+  const RunResult a = run_shipped("autocross", 2, "a");
+  const RunResult b = run_shipped("autocross", 2, "b");
+  EXPECT_TRUE(a.referee.completed) << a.referee.dnf_reason;
+  EXPECT_TRUE(a.passed);
+  EXPECT_EQ(without_timing(a.metrics), without_timing(b.metrics));
+  // a different seed is a different circuit
+  const RunResult c = run_shipped("autocross", 3, "c");
+  EXPECT_NE(a.metrics["track"], c.metrics["track"]);
+}
+
+}  // namespace
+}  // namespace conesim::sim
