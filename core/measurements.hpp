@@ -1,0 +1,113 @@
+#pragma once
+// Raw sensor data as the system under test receives it, and the ground-truth labels that
+// travel beside it (ARCHITECTURE decision 3: only the evaluator reads labels).
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <vector>
+
+#include "core/geometry.hpp"
+#include "core/time.hpp"
+
+namespace conesim::core {
+
+/// A rigid transform in 3D (position in metres, orientation as a unit quaternion).
+struct Pose3 {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
+
+  /// Maps a point from this frame into the parent frame.
+  Eigen::Vector3d transform(const Eigen::Vector3d& p) const { return position + orientation * p; }
+  /// Composition this * other.
+  Pose3 compose(const Pose3& other) const {
+    return {transform(other.position), (orientation * other.orientation).normalized()};
+  }
+  /// The inverse transform.
+  Pose3 inverse() const {
+    const Eigen::Quaterniond q = orientation.conjugate();
+    return {-(q * position), q};
+  }
+  /// The planar part: x, y and the heading of the x axis.
+  Pose2 planar() const {
+    const Eigen::Vector3d x_axis = orientation * Eigen::Vector3d::UnitX();
+    return {position.x(), position.y(), std::atan2(x_axis.y(), x_axis.x())};
+  }
+  /// Interpolates between a (s = 0) and b (s = 1): linear in position, slerp in orientation.
+  static Pose3 interpolate(const Pose3& a, const Pose3& b, double s) {
+    return {a.position + s * (b.position - a.position), a.orientation.slerp(s, b.orientation)};
+  }
+};
+
+/// One LiDAR return in the sensor frame.
+struct LidarPoint {
+  float x = 0.f;
+  float y = 0.f;
+  float z = 0.f;
+  /// Calibrated reflectivity-like intensity, 0-255.
+  float intensity = 0.f;
+  /// Laser channel, 0 = lowest elevation.
+  uint16_t ring = 0;
+  /// Time of the return after the sweep's start, seconds.
+  float time_offset_s = 0.f;
+};
+
+/// One sweep of a spinning LiDAR.
+struct PointCloud {
+  /// Time of the sweep's first column.
+  TimeUs stamp = 0;
+  std::vector<LidarPoint> points;
+};
+
+/// Ground truth of a sweep, index by index with PointCloud::points: the cone id each point hit
+/// (kGroundLabel for the ground).
+struct PointCloudLabels {
+  static constexpr int kGroundLabel = -1;
+  std::vector<int> cone_id;
+  /// Pose of the sensor in the track frame at each column's firing time is not stored; the
+  /// sensor pose at the sweep's start and end are.
+  Pose3 sensor_pose_start;
+  Pose3 sensor_pose_end;
+};
+
+/// Pinhole intrinsics of a rectified camera, pixels.
+struct CameraIntrinsics {
+  int width_px = 0;
+  int height_px = 0;
+  double fx = 0.0;
+  double fy = 0.0;
+  double cx = 0.0;
+  double cy = 0.0;
+};
+
+/// An 8-bit RGB image, rows top to bottom.
+struct RgbImage {
+  int width_px = 0;
+  int height_px = 0;
+  std::vector<uint8_t> rgb;
+};
+
+/// A stereo pair from rectified cameras with exact calibration. The camera frame is the usual
+/// optical one: x right, y down, z forward.
+struct StereoFrame {
+  TimeUs stamp = 0;
+  RgbImage left;
+  RgbImage right;
+  /// Metric depth along the optical axis of the left image, row-major, empty unless requested.
+  std::vector<float> left_depth_m;
+  CameraIntrinsics intrinsics;
+  /// Left camera pose in the vehicle frame (rear axle centre on the ground plane).
+  Pose3 left_in_vehicle;
+  /// Right camera pose in the vehicle frame.
+  Pose3 right_in_vehicle;
+  /// Distance between the optical centres, metres.
+  double baseline_m = 0.0;
+};
+
+/// Ground truth of a stereo frame: the camera poses in the track frame.
+struct StereoLabels {
+  Pose3 left_in_track;
+  Pose3 right_in_track;
+};
+
+}  // namespace conesim::core
