@@ -163,6 +163,13 @@ void VehicleSim::apply_controls(const core::VehicleCommand& command) {
   }
 }
 
+core::Pose3 VehicleSim::vehicle_pose3() const {
+  const mjtNum* pos = data_->xpos + 3 * chassis_body_;
+  const mjtNum* q = data_->xquat + 4 * chassis_body_;
+  const core::Pose3 body{{pos[0], pos[1], pos[2]}, Eigen::Quaterniond(q[0], q[1], q[2], q[3])};
+  return body.compose({{0.0, 0.0, -params_.wheel_radius_m}, Eigen::Quaterniond::Identity()});
+}
+
 VehicleTruth VehicleSim::truth() const {
   VehicleTruth t;
   const mjtNum* pos = data_->xpos + 3 * chassis_body_;

@@ -10,6 +10,7 @@
 
 #include "core/autonomy_types.hpp"
 #include "core/geometry.hpp"
+#include "core/measurements.hpp"
 #include "vehicle_models/vehicle_params.hpp"
 
 namespace conesim::sim {
@@ -47,6 +48,10 @@ class VehicleSim {
 
   /// The state after the last step.
   VehicleTruth truth() const;
+
+  /// Full 3D pose of the vehicle frame (rear axle centre on the ground at design ride height,
+  /// x forward, z up) in the track frame, pitch, roll and heave included. Sensors mount on it.
+  core::Pose3 vehicle_pose3() const;
 
   /// Physics step, seconds.
   double timestep_s() const;

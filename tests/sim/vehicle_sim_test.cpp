@@ -83,3 +83,19 @@ TEST(VehicleSim, SteeringIsRateLimited) {
 
 }  // namespace
 }  // namespace conesim::sim
+
+namespace conesim::sim {
+namespace {
+
+TEST(VehicleSim, VehicleFrameSitsOnTheGroundUnderTheRearAxle) {
+  VehicleSim car(vehicle_models::VehicleParams{}, {2.0, -1.0, 0.5});
+  for (int i = 0; i < 500; ++i) car.step({});
+  const core::Pose3 p = car.vehicle_pose3();
+  EXPECT_NEAR(p.position.z(), 0.0, 0.01);
+  EXPECT_NEAR(p.planar().x, 2.0, 0.01);
+  EXPECT_NEAR(p.planar().y, -1.0, 0.01);
+  EXPECT_NEAR(p.planar().yaw, 0.5, 1e-3);
+}
+
+}  // namespace
+}  // namespace conesim::sim
