@@ -1,6 +1,7 @@
 #pragma once
 // The one source of randomness: a seeded generator passed in by the caller.
 
+#include <cmath>
 #include <cstdint>
 #include <random>
 
@@ -29,5 +30,25 @@ inline uint64_t derive_seed(uint64_t seed, uint64_t stream) {
   z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
   return z ^ (z >> 31);
 }
+
+}  // namespace conesim::core
+
+namespace conesim::core {
+
+/// A standard normal sample (Box-Muller on the raw generator, so it is the same everywhere).
+inline double standard_normal(Rng& rng) {
+  double u1 = uniform(rng, 0.0, 1.0);
+  while (u1 <= 0.0) u1 = uniform(rng, 0.0, 1.0);
+  const double u2 = uniform(rng, 0.0, 1.0);
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(6.283185307179586 * u2);
+}
+
+/// A normal sample with the given mean and standard deviation.
+inline double gaussian(Rng& rng, double mean, double sigma) {
+  return mean + sigma * standard_normal(rng);
+}
+
+/// True with probability p.
+inline bool bernoulli(Rng& rng, double p) { return uniform(rng, 0.0, 1.0) < p; }
 
 }  // namespace conesim::core
