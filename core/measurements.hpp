@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -108,6 +109,43 @@ struct StereoFrame {
 struct StereoLabels {
   Pose3 left_in_track;
   Pose3 right_in_track;
+};
+
+/// An IMU sample in the IMU frame (aligned with the vehicle frame).
+struct ImuSample {
+  TimeUs stamp = 0;
+  /// Angular rate, rad/s.
+  Eigen::Vector3d gyro_rps = Eigen::Vector3d::Zero();
+  /// Specific force (acceleration minus gravity), m/s^2: +9.81 on z at rest.
+  Eigen::Vector3d accel_mps2 = Eigen::Vector3d::Zero();
+};
+
+/// Wheel speeds from the encoders, rad/s, order fl, fr, rl, rr.
+struct WheelSpeeds {
+  TimeUs stamp = 0;
+  std::array<double, 4> omega_rps{};
+};
+
+/// The steering angle sensor: the single-track equivalent angle, radians, positive left.
+struct SteeringSample {
+  TimeUs stamp = 0;
+  double steer_rad = 0.0;
+};
+
+/// A GNSS fix in the track frame (a local tangent plane), metres and m/s.
+struct GnssFix {
+  TimeUs stamp = 0;
+  Eigen::Vector2d position = Eigen::Vector2d::Zero();
+  Eigen::Vector2d velocity_mps = Eigen::Vector2d::Zero();
+  /// One-sigma horizontal accuracy the receiver reports, metres.
+  double sigma_m = 0.0;
+};
+
+/// Ground truth of a cone observation batch: the true cone id of each observation, index by
+/// index, or kFalsePositive.
+struct ObservationLabels {
+  static constexpr int kFalsePositive = -1;
+  std::vector<int> cone_id;
 };
 
 }  // namespace conesim::core
