@@ -4,7 +4,28 @@
 // Readers: fssim YAML, PacSim YAML, EUFS CSV (with or without the header line, as FSDS writes
 // it), EPFL CSV. Writers: PacSim YAML and EUFS CSV. Every reader throws core::InputError
 // naming the file, the line (CSV, YAML marks) or key, and what was expected.
+//
+// How the formats map onto a Track:
+// - fssim: cones_left blue (left lane, file order), cones_right yellow (right lane),
+//   cones_orange small orange, cones_orange_big big orange, tk_device posts paired into gates,
+//   starting_pose_front_wing [x, y, yaw] the start (the front wing, not the rear axle).
+// - PacSim: left/right lanes in file order (any class; invisible and timekeeping entries are
+//   not cones and are skipped with a warning), unknown: cones in no lane, time_keeping: every
+//   entry is a gate post whatever its class (as PacSim's loader reads it), consecutive posts
+//   form a gate; start yaw = orientation[2]; lanesFirstWithLastConnected gives `closed`.
+//   earthToTrack is the geodetic origin (lat, lon, alt) and ENU rotation of the track frame
+//   that PacSim's GNSS model uses; cone positions are already in the track frame, so it is not
+//   applied (a non-zero one gives a warning) and writers emit zeros.
+// - EUFS CSV: car_start is the start pose (yaw in the direction column); midpoint and
+//   inactive_noise rows are skipped; conesim's own files add an id column.
+// - EPFL CSV: no start pose (guessed); std_X/std_Y give a diagonal covariance.
+// - CSV formats give no lanes or gates: lanes are rebuilt (tracks/lanes.hpp), and each group of
+//   big orange cones on both sides of the track becomes a gate, ordered along the track.
+// - Closed when the file says so (PacSim) or both lanes close on themselves; cones of one class
+//   within 1 cm of each other are one cone listed twice: the copy is dropped with a warning.
+// - The event is set from the name (skidpad, accel...); ids run 0..n-1 in file order.
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
 
@@ -18,6 +39,9 @@ enum class TrackFormat { kFssimYaml, kPacsimYaml, kEufsCsv, kEpflCsv };
 /// Largest track file accepted, bytes (a real layout is a few tens of kilobytes).
 inline constexpr std::uintmax_t kMaxTrackFileBytes = 16u << 20;
 
+/// Most cones a layout may have (real ones have a few hundred; lane rebuilding is quadratic).
+inline constexpr std::size_t kMaxTrackCones = 10000;
+
 /// Reads a track file, telling the format from its extension and content. The result has
 /// unique cone ids, ordered lanes with blue on the left of the direction of travel (rebuilt
 /// where the format does not give the order), a start pose, gates and a centre line.
@@ -26,11 +50,17 @@ Track read_track(const std::filesystem::path& file);
 /// Parses track text already in memory; `name` stands for the file in error messages.
 Track parse_track(const std::string& text, TrackFormat format, const std::string& name);
 
-/// Writes PacSim YAML (lanes in driving order, gates as time_keeping, the rest as unknown).
+/// Writes PacSim YAML: lanes in driving order as left/right, gates as pairs of time_keeping
+/// posts (left first), every other cone under unknown with its class, the start pose, an
+/// identity earthToTrack and lanesFirstWithLastConnected = closed. Cone ids and covariances
+/// are not part of the format; a reader numbers the cones in file order.
 void write_pacsim_yaml(const Track& track, const std::filesystem::path& file);
 
-/// Writes EUFS CSV with the header line, a car_start row and each cone's id in the
-/// `direction` column position's neighbour... see io.cpp for the exact column use.
+/// Writes EUFS CSV: the header tag,x,y,direction,x_variance,y_variance,xy_covariance plus an
+/// `id` column that read_track reads back, a car_start row (yaw in the direction column), then
+/// the left lane and the right lane in driving order and the remaining cones by id. Classes are
+/// written as blue, yellow, orange, big_orange and unknown; gates are not written (a reader
+/// makes them again from the big orange cones).
 void write_eufs_csv(const Track& track, const std::filesystem::path& file);
 
 /// Writes by extension: .yaml/.yml PacSim YAML, .csv EUFS CSV; throws InputError otherwise.

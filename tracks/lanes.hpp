@@ -20,8 +20,10 @@ std::vector<int> order_lane(const Track& track, const std::vector<int>& cone_ids
 /// direction of travel keep blue on the left.
 void rebuild_lanes(Track& track);
 
-/// When the source gives no start pose: the middle of the big orange start gate (or the first
-/// centre-line point), facing along the lanes. Adds a warning to the track.
+/// When the source gives no start pose: the middle of the first timing gate or of the big orange
+/// start gate (else the first centre-line point, the first lane cones or the middle of the
+/// cones), facing along the centre line or the lanes (else across the nearest blue/yellow
+/// pair, blue on the left). Adds a warning to the track.
 void guess_start_pose(Track& track);
 
 /// True when the ordered lane closes on itself: its last cone is within a few metres of the
