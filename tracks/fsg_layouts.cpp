@@ -17,8 +17,9 @@ int add_cone(Track& track, ConeClass cls, const Vec2& position) {
   return id;
 }
 
-// appends points of the straight from a to b every step_m, without a itself
-void append_straight(std::vector<Vec2>& path, const Vec2& a, const Vec2& b, double step_m) {
+// appends points of the straight from a to b every step_m, without a itself (a and b are
+// copies: a is often path.back())
+void append_straight(std::vector<Vec2>& path, const Vec2 a, const Vec2 b, double step_m) {
   const double length = (b - a).norm();
   const int n = std::max(1, static_cast<int>(std::ceil(length / step_m)));
   for (int i = 1; i <= n; ++i) path.push_back(a + (b - a) * (static_cast<double>(i) / n));
@@ -50,7 +51,7 @@ Track make_skidpad() {
   const Vec2 right_centre(d, -half_gap);
   const Vec2 left_centre(d, half_gap);
   const double lane_half_width = half_gap - kSkidpadInnerConeRadiusM;  // 1.65 m, as fssim
-  constexpr int kConesPerRing = 16;                                     // 22.5 degrees apart
+  constexpr int kConesPerRing = 16;                                    // 22.5 degrees apart
   const double step = 2.0 * kPi / kConesPerRing;
 
   // inner rings: 16 cones each, one of them on the timing line; yellow inside the right circle
@@ -75,14 +76,14 @@ Track make_skidpad() {
   // crosses over; walked from the entry side over the far side to the exit side, so each
   // ring continues its lane. Blue outside the right circle, yellow outside the left.
   for (int k = 0; k <= 12; ++k) {
-    const double phi_left = 1.25 * kPi - k * step;    // 225 deg down to -45 deg
-    const double phi_right = 0.75 * kPi + k * step;   // 135 deg up to 405 deg
-    left_lane.push_back(add_cone(track, ConeClass::kYellow,
-                                 left_centre + kSkidpadOuterConeRadiusM *
-                                                   Vec2(std::cos(phi_left), std::sin(phi_left))));
-    right_lane.push_back(add_cone(track, ConeClass::kBlue,
-                                  right_centre + kSkidpadOuterConeRadiusM *
-                                                     Vec2(std::cos(phi_right), std::sin(phi_right))));
+    const double phi_left = 1.25 * kPi - k * step;   // 225 deg down to -45 deg
+    const double phi_right = 0.75 * kPi + k * step;  // 135 deg up to 405 deg
+    left_lane.push_back(add_cone(
+        track, ConeClass::kYellow,
+        left_centre + kSkidpadOuterConeRadiusM * Vec2(std::cos(phi_left), std::sin(phi_left))));
+    right_lane.push_back(add_cone(
+        track, ConeClass::kBlue,
+        right_centre + kSkidpadOuterConeRadiusM * Vec2(std::cos(phi_right), std::sin(phi_right))));
   }
 
   // exit lane to the stop area: small orange cones at 11, 16 and 21 m past the timing line,

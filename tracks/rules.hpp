@@ -36,8 +36,10 @@ struct RuleLimits {
   /// Largest diameter of a constant turn: a stretch turning one way by wide_turn_min_sweep_deg
   /// or more while its radius of curvature stays above max_turn_diameter_m / 2 is a violation.
   double max_turn_diameter_m = 50.0;
-  /// Smallest outer diameter of a hairpin: twice (centre-line radius + distance from the
-  /// centre line to the outer boundary) at the tightest point.
+  /// Smallest outer diameter of a hairpin: twice the radius of the outer boundary (about the
+  /// centre-line radius + half the width) at the tightest point, fitted to that boundary's cones
+  /// over +-3 m; counted only where the centre line turns the same way at least as tightly, so
+  /// one misplaced cone on a straight is no hairpin.
   double min_hairpin_outer_diameter_m = 9.0;
   /// Largest gap between consecutive cones of a boundary (closed lanes: the closing gap too).
   double max_cone_spacing_m = 5.0;
@@ -78,14 +80,31 @@ struct TrackStats {
   double min_width_m = 0.0;
   /// Largest gap between consecutive cones of a boundary (closing gap included), metres.
   double max_spacing_m = 0.0;
-  /// Smallest radius of curvature of the centre line, from circles fitted over about 6 m of
-  /// line around each point, metres; infinity for a straight line.
+  /// Smallest radius of curvature of the centre line, from circles fitted over 8 m of line
+  /// around each point (adjacent 1 m samples are too noisy), metres; infinity for a straight.
   double min_radius_m = 0.0;
 };
 
 /// Computes the figures above from the lanes and the centre line (derived when the track has
 /// none).
 TrackStats compute_stats(const Track& track);
+
+/// One skidpad circle as fitted to the cones.
+struct SkidpadCircleFit {
+  Vec2 centre = Vec2::Zero();
+  /// Radius of the inner ring of cones, metres.
+  double inner_radius_m = 0.0;
+  /// Radius of the outer ring of cones, metres; 0 when only one ring was found.
+  double outer_radius_m = 0.0;
+  /// Cones on each ring.
+  int inner_cones = 0;
+  int outer_cones = 0;
+};
+
+/// Fits the skidpad circles to the blue, yellow and unknown cones: rings of 8 or more cones
+/// within 0.3 m of a circle, grouped by centre (at most four rings). A skidpad gives two
+/// entries; other layouts give fewer or rings that make no figure eight.
+std::vector<SkidpadCircleFit> fit_skidpad_circles(const Track& track);
 
 /// The event whose rules apply: the track's own when it has one, otherwise recognised from the
 /// layout (closed circuit: trackdrive; two rings of cones in a figure eight: skidpad; open,
