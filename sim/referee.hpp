@@ -2,6 +2,19 @@
 // The referee: FSG competition logic on ground truth. Timing from the first time-keeping gate,
 // laps at the gates, cones hit (+2 s, the cone is knocked over), off-course (+10 s), DNF with a
 // reason, and each event's finish rule.
+//
+// Conventions (see referee.cpp for the details):
+// - A gate is crossed when the front wing point (rear axle + front_overhang_from_rear_axle_m
+//   along the heading) crosses the gate segment in the driving direction; the crossing time is
+//   interpolated between physics steps. Crossings backwards are owed and cancel the next forward
+//   crossing. A track without gates gets one across the centre line just ahead of the start
+//   (skidpad: kSkidpadStartToTimingLineM ahead; acceleration: a finish gate 75 m further on).
+// - Timeouts run from the first gate crossing; until the car reaches it they run from the run
+//   start (the first update), so a car that never reaches the line is DNF too.
+// - Off-course (all four wheels outside) is judged from the first gate crossing to the end.
+//   Circuits: between the left and the right lane rings; open layouts: inside the polygon of the
+//   left lane and the reversed right lane; skidpad: within 1.65 m (the cone lines) of the circles
+//   of radius 9.125 m or of the entry/exit lane, built from the timing gate.
 
 #include <memory>
 #include <optional>
@@ -19,36 +32,52 @@ namespace conesim::sim {
 /// Penalties, time limits and thresholds (FSG handbook DV rules; PacSim's competition logic).
 struct RefereeParams {
   double cone_penalty_s = 2.0;
+  /// Skidpad's cone penalty is smaller (FSG handbook D 5: 0.2 s per cone down or out; PacSim).
+  double cone_penalty_skidpad_s = 0.2;
   double off_course_penalty_s = 10.0;
   double timeout_acceleration_s = 25.0;
   double timeout_skidpad_s = 90.0;
   double timeout_autocross_s = 300.0;
   double timeout_trackdrive_first_lap_s = 300.0;
   double timeout_trackdrive_total_s = 1000.0;
-  /// DNF "stuck": slower than stuck_speed_mps for stuck_time_s after the car has started.
+  /// DNF "stuck": slower than stuck_speed_mps for stuck_time_s before the finish (the timer runs
+  /// from the run start, so a car that never moves is stuck too). "stopped early" instead when
+  /// the car has completed a lap but not the event's laps.
   double stuck_speed_mps = 0.2;
   double stuck_time_s = 15.0;
-  /// DNF "left the track": farther than this from the track's centre line, metres.
+  /// DNF "left the track": farther than this from the track's centre line and every cone, metres.
   double left_track_distance_m = 10.0;
   /// Below this speed for stop_time_s the car counts as stopped (finish rules), m/s and s.
   double stopped_speed_mps = 0.1;
   double stopped_time_s = 0.5;
+  /// After the last timed lap the car must stop within this time, else DNF "did not stop"
+  /// (PacSim: 30 s), seconds.
+  double stop_window_s = 30.0;
   /// Trackdrive laps.
   int trackdrive_laps = 10;
+
+  /// Empty when every value is usable; otherwise "key: what was expected" for the first bad one.
+  std::string validate() const;
 };
 
 /// What the referee decided (copied into metrics.json).
 struct RefereeResult {
   bool completed = false;
-  /// Empty unless DNF: "timeout", "stuck", "left the track", "stopped early", ...
+  /// Empty unless DNF: "timeout", "timeout (first lap)", "stuck", "stopped early", "left the
+  /// track", "overran braking zone", "wrong direction", "did not stop".
   std::string dnf_reason;
+  /// Laps counted at the gate (acceleration: 1 once the finish gate is crossed).
   int laps = 0;
+  /// Every lap's time, seconds (skidpad: all four laps, the timed ones are the 2nd and 4th).
   std::vector<double> lap_times_s;
   /// Ids of the cones knocked over, in the order they were hit.
   std::vector<int> cones_hit;
   int off_course = 0;
-  /// Raw time from the first gate to the finish (or to the end of the run), seconds.
+  /// Raw time from the first gate to the finish (or to the end of the run), seconds. Skidpad:
+  /// the average of the timed laps (the second right and the second left lap).
   double raw_time_s = 0.0;
+  /// Cone and off-course penalties, seconds.
+  double penalty_s = 0.0;
   /// Raw time plus penalties.
   double final_time_s = 0.0;
 };
@@ -56,6 +85,8 @@ struct RefereeResult {
 /// One referee per run. update() is called after every physics step with the true state.
 class Referee {
  public:
+  /// Prepares the judging of one run of `event` on `track` (gates, boundaries, cone index).
+  /// Throws std::invalid_argument when params or vehicle do not validate.
   Referee(const tracks::Track& track, core::EventType event,
           const vehicle_models::VehicleParams& vehicle, const RefereeParams& params = {});
   ~Referee();
