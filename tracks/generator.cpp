@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/rng.hpp"
@@ -24,28 +26,31 @@ constexpr double kDeg = kPi / 180.0;
 
 // start zone: the start pose sits kStartLineM behind the start line on the start straight
 constexpr double kStartLineM = 6.0;
-constexpr double kBigConeHalfGapM = 1.3;    // big orange cones at the line +- this, along track
-constexpr double kBigConeOutsideM = 0.7;    // and this far outside the boundary (as at FSG)
-constexpr double kGatePostOutsideM = 1.2;   // photocell posts outside the boundary
+constexpr double kBigConeHalfGapM = 1.3;   // big orange cones at the line +- this, along track
+constexpr double kBigConeOutsideM = 0.7;   // and this far outside the boundary (as at FSG)
+constexpr double kGatePostOutsideM = 1.2;  // photocell posts outside the boundary
 
 // design limits, inside the handbook's with a margin
-constexpr double kMaxStraightM = 75.0;      // rule: 80 m
-constexpr double kLapMarginM = 10.0;        // kept from min_lap_m and max_lap_m
-constexpr double kClearanceM = 2.0;         // between boundaries of non-adjacent track parts
-constexpr double kAdjacentM = 20.0;         // track parts closer than this along the line
-constexpr double kExtraWidthM = 0.8;        // sections are up to this much wider than width_m
-constexpr double kWidthBlendM = 3.0;        // width changes ramp over +- this
+constexpr double kMaxStraightM = 75.0;  // rule: 80 m
+constexpr double kLapMarginM = 10.0;    // kept from min_lap_m and max_lap_m
+constexpr double kClearanceM = 2.0;     // between boundaries of non-adjacent track parts
+constexpr double kAdjacentM = 20.0;     // track parts closer than this along the line
+constexpr double kExtraWidthM = 0.8;    // sections are up to this much wider than width_m
+constexpr double kWidthBlendM = 3.0;    // width changes ramp over +- this
 
 // primitive geometry (centre-line radii); the hairpin's inner boundary stays >= 2.5 m
 constexpr double kHairpinMinRadiusM = 5.0;
-constexpr double kHairpinMaxRadiusM = 7.0;
+constexpr double kHairpinRadiusSpreadM = 2.0;
+constexpr double kHairpinMinInnerRadiusM = 2.5;
 constexpr double kCornerMinRadiusM = 8.0;
 constexpr double kCornerMaxRadiusM = 12.0;
-constexpr double kSweeperMaxRadiusM = 22.0;  // rule: turns up to 50 m diameter
+constexpr double kSweeperMinRadiusM = 10.0;
+constexpr double kSweeperMaxRadiusM = 20.0;    // rule: turns up to 50 m diameter
 constexpr double kSlalomMinHalfPeriodM = 8.5;  // rule: slalom cones 7.5 .. 12 m apart
 constexpr double kSlalomMaxHalfPeriodM = 11.5;
-constexpr double kSlalomMaxCurvature = 1.0 / 8.5;
+constexpr double kSlalomMaxCurvature = 1.0 / 6.0;
 constexpr std::array<double, 4> kClosingRadiiM{8.0, 11.0, 14.0, 18.0};
+constexpr double kMaxClosingStraightM = 40.0;  // longer closures look like an afterthought
 
 // cone spacing: cone_spacing_m on straights and wide sweepers, kTightSpacingM in hairpins
 constexpr double kTightSpacingM = 3.0;
@@ -56,7 +61,18 @@ constexpr double kTightCurvature = 1.0 / 7.0;
 constexpr double kSampleStepM = 0.1;
 constexpr double kCheckStepM = 0.5;
 
-// what a piece of centre line is part of (drives widths and the feature mix)
+// the primitives the turtle lays, and how often each is drawn
+enum class Primitive { kStraight, kSweeper, kCorner, kHairpin, kChicane, kSlalom };
+constexpr std::array<std::pair<Primitive, double>, 6> kPrimitiveWeights{{
+    {Primitive::kStraight, 0.20},
+    {Primitive::kSweeper, 0.25},
+    {Primitive::kCorner, 0.15},
+    {Primitive::kHairpin, 0.15},
+    {Primitive::kChicane, 0.15},
+    {Primitive::kSlalom, 0.10},
+}};
+
+// what a piece of centre line is part of (for the feature counts)
 enum class Feature { kStraight, kSweeper, kCorner, kHairpin, kChicane, kSlalom, kClosing };
 
 // one piece of centre line: a constant-curvature arc (curvature 0: a straight), or one half
@@ -126,8 +142,8 @@ void lay_piece(const Piece& piece, double step_m, Turtle& turtle, std::vector<Sa
   for (int i = 0; i < steps; ++i) {
     const double u = i * h;
     if (out) {
-      out->push_back({turtle.position, heading0 + heading_change(piece, u),
-                      curvature_at(piece, u), piece.width_m, turtle.s_m});
+      out->push_back({turtle.position, heading0 + heading_change(piece, u), curvature_at(piece, u),
+                      piece.width_m, turtle.s_m});
     }
     turtle.position += displacement(piece, heading0, u, h);
     turtle.s_m += h;
@@ -142,8 +158,8 @@ std::vector<Sample> lay_pieces(const std::vector<Piece>& pieces, double step_m, 
   return out;
 }
 
-// true when the samples fresh[first..] keep the clearance to every sample of `laid` that is
-// not adjacent along the line (lap_m > 0: measure along the closed loop)
+// true when every sample of `fresh` keeps the clearance to every sample of `laid` that is not
+// adjacent along the line (lap_m > 0: distances along the line wrap around the closed loop)
 bool keeps_clearance(const std::vector<Sample>& laid, const std::vector<Sample>& fresh,
                      double lap_m) {
   for (const Sample& a : fresh) {
@@ -158,18 +174,81 @@ bool keeps_clearance(const std::vector<Sample>& laid, const std::vector<Sample>&
   return true;
 }
 
-// the pieces of one layout, with the turtle's plan
+// a closed guide loop the turtle follows: a lobed, stretched circle through the start pose,
+// tangent to +x there, of a given length (the track winds around it and comes out longer)
+class Guide {
+ public:
+  Guide(Rng& rng, double length_m, double direction) {
+    // the unit shape: a polar curve with two- and three-lobed terms, stretched along x
+    constexpr int kPoints = 256;
+    const double a2 = uniform(rng, 0.0, 0.3), p2 = uniform(rng, 0.0, 2.0 * kPi);
+    const double a3 = uniform(rng, 0.0, 0.15), p3 = uniform(rng, 0.0, 2.0 * kPi);
+    const double stretch = uniform(rng, 1.0, 1.8);
+    std::vector<Vec2> unit(kPoints);
+    for (int k = 0; k < kPoints; ++k) {
+      const double phi = 2.0 * kPi * k / kPoints;
+      const double r = 1.0 + a2 * std::cos(2.0 * phi + p2) + a3 * std::cos(3.0 * phi + p3);
+      unit[k] = Vec2(stretch * r * std::cos(phi), direction * r * std::sin(phi));
+    }
+
+    // scaled to the length, started at a random point, moved to the start pose
+    double perimeter = 0.0;
+    for (int k = 0; k < kPoints; ++k) perimeter += (unit[(k + 1) % kPoints] - unit[k]).norm();
+    const int k0 = static_cast<int>(uniform_int(rng, 0, kPoints - 1));
+    const Vec2 tangent = unit[(k0 + 1) % kPoints] - unit[(k0 + kPoints - 1) % kPoints];
+    const Pose2 frame{unit[k0].x(), unit[k0].y(), std::atan2(tangent.y(), tangent.x())};
+    const double scale = length_m / perimeter;
+    double s = 0.0;
+    for (int k = 0; k <= kPoints; ++k) {
+      const Vec2 p = scale * frame.inverse_transform(unit[(k0 + k) % kPoints]);
+      if (k > 0) s += (p - points_.back()).norm();
+      points_.push_back(p);
+      s_.push_back(s);
+    }
+  }
+
+  double length_m() const { return s_.back(); }
+
+  // the guide point at distance s along the loop (wrapped)
+  Vec2 at(double s) const {
+    s = std::fmod(s, length_m());
+    if (s < 0.0) s += length_m();
+    const size_t i = static_cast<size_t>(std::upper_bound(s_.begin(), s_.end(), s) - s_.begin());
+    const size_t i1 = std::min(i, s_.size() - 1), i0 = i1 - 1;
+    const double f = (s - s_[i0]) / std::max(1e-9, s_[i1] - s_[i0]);
+    return points_[i0] + f * (points_[i1] - points_[i0]);
+  }
+
+  // distance along the guide of its point nearest p, searched in [from_m, to_m]
+  double project(const Vec2& p, double from_m, double to_m) const {
+    double best_s = from_m, best_d2 = std::numeric_limits<double>::infinity();
+    for (size_t i = 0; i < points_.size(); ++i) {
+      if (s_[i] < from_m || s_[i] > to_m) continue;
+      const double d2 = (points_[i] - p).squaredNorm();
+      if (d2 < best_d2) {
+        best_d2 = d2;
+        best_s = s_[i];
+      }
+    }
+    return best_s;
+  }
+
+ private:
+  std::vector<Vec2> points_;
+  std::vector<double> s_;
+};
+
+// the pieces of the open part of one layout: a turtle lays random primitives from the start
+// pose, steering towards a point ahead on the guide loop, and stops short of closing the loop
 class LayoutDrawer {
  public:
-  LayoutDrawer(Rng& rng, const GeneratorParams& params) : rng_(rng), params_(params) {
-    direction_ = uniform(rng_, 0.0, 1.0) < 0.5 ? 1.0 : -1.0;
-    lap_target_m_ = uniform(rng_, params.min_lap_m + 60.0, params.max_lap_m - 70.0);
-    budget_m_ = lap_target_m_ * uniform(rng_, 0.72, 0.85);
-    wobble_deg_ = uniform(rng_, 0.0, 70.0);
-    wobble_waves_ = static_cast<double>(uniform_int(rng_, 1, 2));
-    wobble_phase_ = uniform(rng_, 0.0, 2.0 * kPi);
-    lead_m_ = uniform(rng_, 6.0, 12.0);
-  }
+  LayoutDrawer(Rng& rng, const GeneratorParams& params)
+      : rng_(rng),
+        params_(params),
+        direction_(uniform(rng, 0.0, 1.0) < 0.5 ? 1.0 : -1.0),
+        guide_(rng, guide_length(rng, params), direction_),
+        lead_m_(uniform(rng, 6.0, 12.0)),
+        stop_before_m_(uniform(rng, 20.0, 35.0)) {}
 
   // draws the open part of the circuit from the start pose; nullopt when it painted itself in
   std::optional<std::vector<Piece>> draw_open_part() {
@@ -178,13 +257,14 @@ class LayoutDrawer {
     laid_ = lay_pieces({straight(lead_m_, width())}, kCheckStepM, lead);
 
     // the start straight: long enough for the start zone and the feature mix
-    add({straight(uniform(rng_, 30.0, 50.0), width())});
+    add({straight(uniform(rng_, 32.0, 45.0), width())});
 
-    // primitives until the budget is used, retrying a few draws when one runs into the track
-    while (turtle_.s_m < budget_m_) {
+    // primitives until the guide is nearly done, retrying a few draws when one runs into the
+    // track laid so far; a turtle that wanders off makes too long a lap
+    while (progress_m_ < guide_.length_m() - stop_before_m_) {
       bool placed = false;
-      for (int attempt = 0; attempt < 8 && !placed; ++attempt) placed = try_add(draw_primitive());
-      if (!placed) return std::nullopt;
+      for (int attempt = 0; attempt < 12 && !placed; ++attempt) placed = try_add(draw_primitive());
+      if (!placed || turtle_.s_m > params_.max_lap_m) return std::nullopt;
     }
     if (hairpins_ == 0) return std::nullopt;
     return pieces_;
@@ -196,6 +276,12 @@ class LayoutDrawer {
   double width() { return params_.width_m + uniform(rng_, 0.0, kExtraWidthM); }
 
  private:
+  // the guide is shorter than the lap it leads to: the primitives wind around it
+  static double guide_length(Rng& rng, const GeneratorParams& params) {
+    const double lap_m = uniform(rng, params.min_lap_m + 40.0, params.max_lap_m - 60.0);
+    return lap_m * uniform(rng, 0.55, 0.7);
+  }
+
   static Piece straight(double length_m, double width_m) {
     return {Feature::kStraight, false, length_m, 0.0, width_m};
   }
@@ -204,103 +290,122 @@ class LayoutDrawer {
     return {feature, false, radius_m * std::abs(turn_rad), sign / radius_m, width_m};
   }
 
-  // heading the plan wants at distance s: one turn per lap, with a wobble for lobes
-  double planned_heading(double s_m) const {
-    const double f = std::clamp(s_m / lap_target_m_, 0.0, 1.0);
-    return direction_ * 2.0 * kPi * f +
-           wobble_deg_ * kDeg * std::sin(2.0 * kPi * wobble_waves_ * f + wobble_phase_) -
-           wobble_deg_ * kDeg * std::sin(wobble_phase_);
+  // the turn that points the turtle at the guide kLookAheadM beyond its own progress
+  double wanted_turn() const {
+    constexpr double kLookAheadM = 18.0;
+    const Vec2 to = guide_.at(progress_m_ + kLookAheadM) - turtle_.position;
+    return core::normalize_angle(std::atan2(to.y(), to.x()) - turtle_.heading);
   }
 
-  // the turn the plan asks for over the next ahead_m
-  double wanted_turn(double ahead_m) const {
-    return planned_heading(turtle_.s_m + ahead_m) - turtle_.heading;
-  }
-
-  // turn direction: the plan's, sometimes the other way when the plan asks for little
+  // turn direction: the guide's, sometimes the other way when the guide asks for little
   double turn_sign(double wanted, double counter_limit_rad) {
     double sign = wanted >= 0.0 ? 1.0 : -1.0;
-    if (std::abs(wanted) < counter_limit_rad && uniform(rng_, 0.0, 1.0) < 0.3) sign = -sign;
+    if (std::abs(wanted) < counter_limit_rad && uniform(rng_, 0.0, 1.0) < 0.35) sign = -sign;
     return sign;
   }
 
-  // a turn angle in [lo, hi]: close to what the plan wants when turning its way
+  // a turn angle in [lo, hi]: close to what the guide wants when turning its way
   double turn_angle(double wanted, double sign, double lo, double hi) {
     if (sign * wanted <= 0.0) return uniform(rng_, lo, 0.5 * (lo + hi));
-    return std::clamp(std::abs(wanted) * uniform(rng_, 0.8, 1.2), lo, hi);
+    return std::clamp(std::abs(wanted) * uniform(rng_, 0.8, 1.3), lo, hi);
   }
 
   bool last_is_straight() const {
     return !pieces_.empty() && !pieces_.back().sine && pieces_.back().curvature == 0.0;
   }
 
-  // one primitive: straight, sweeper, corner, hairpin, chicane or slalom
+  // one primitive, drawn by kPrimitiveWeights; a hairpin when the guide turns sharply (half of
+  // the time) and when the layout still lacks one past half way
   std::vector<Piece> draw_primitive() {
-    const bool force_hairpin = hairpins_ == 0 && turtle_.s_m > 0.5 * budget_m_;
-    const double pick = force_hairpin ? 0.5 : uniform(rng_, 0.0, 1.0);
+    const double wanted = wanted_turn();
+    const bool force_hairpin =
+        hairpins_ == 0 && progress_m_ > 0.5 * guide_.length_m() && std::abs(wanted) > kPi / 4;
+    const bool sharp = std::abs(wanted) > 110.0 * kDeg && uniform(rng_, 0.0, 1.0) < 0.5;
+    Primitive kind = Primitive::kHairpin;
+    if (!force_hairpin && !sharp) {
+      double pick = uniform(rng_, 0.0, 1.0);
+      for (const auto& [k, weight] : kPrimitiveWeights) {
+        kind = k;
+        if ((pick -= weight) < 0.0) break;
+      }
+    }
+    // no two straights in a row, at most one slalom
+    if (kind == Primitive::kStraight && last_is_straight()) kind = Primitive::kSweeper;
+    if (kind == Primitive::kSlalom && slaloms_ > 0) kind = Primitive::kChicane;
+
+    switch (kind) {
+      case Primitive::kStraight:
+        return {draw_straight()};
+      case Primitive::kSweeper:
+        return {draw_turn(Feature::kSweeper, kSweeperMinRadiusM, kSweeperMaxRadiusM, 25.0, 100.0,
+                          wanted)};
+      case Primitive::kCorner:
+        return {
+            draw_turn(Feature::kCorner, kCornerMinRadiusM, kCornerMaxRadiusM, 45.0, 120.0, wanted)};
+      case Primitive::kHairpin:
+        return draw_hairpin(wanted);
+      case Primitive::kChicane:
+        return draw_chicane();
+      case Primitive::kSlalom:
+        return draw_slalom();
+    }
+    return {};
+  }
+
+  // straight: mostly short, sometimes a long one
+  Piece draw_straight() {
+    const bool long_one = uniform(rng_, 0.0, 1.0) < 0.15;
+    const double length = long_one ? uniform(rng_, 30.0, 45.0) : uniform(rng_, 8.0, 25.0);
+    return straight(length, width());
+  }
+
+  // constant turn (sweeper or corner): radius and angle range given, degrees
+  Piece draw_turn(Feature feature, double min_radius_m, double max_radius_m, double min_deg,
+                  double max_deg, double wanted) {
+    const double radius = uniform(rng_, min_radius_m, max_radius_m);
+    const double sign = turn_sign(wanted, 45.0 * kDeg);
+    const double angle = turn_angle(wanted, sign, min_deg * kDeg, max_deg * kDeg);
+    return arc(feature, radius, sign * angle, width());
+  }
+
+  // hairpin: a braking straight, 150-200 degrees around a tight radius (the inner boundary
+  // keeps kHairpinMinInnerRadiusM at the widest section width), a short exit straight
+  std::vector<Piece> draw_hairpin(double wanted) {
     std::vector<Piece> out;
+    if (!last_is_straight()) out.push_back(straight(uniform(rng_, 8.0, 20.0), width()));
+    const double sign =
+        std::abs(wanted) > kPi / 4 ? (wanted > 0 ? 1.0 : -1.0) : turn_sign(wanted, kPi);
+    const double min_radius = std::max(
+        kHairpinMinRadiusM, 0.5 * (params_.width_m + kExtraWidthM) + kHairpinMinInnerRadiusM);
+    const double radius = uniform(rng_, min_radius, min_radius + kHairpinRadiusSpreadM);
+    out.push_back(
+        arc(Feature::kHairpin, radius, sign * uniform(rng_, 150.0, 200.0) * kDeg, width()));
+    out.push_back(straight(uniform(rng_, 6.0, 14.0), width()));
+    return out;
+  }
 
-    // hairpin: a braking straight, then 150-200 degrees around a tight radius
-    if (pick >= 0.45 && pick < 0.58) {
-      if (!last_is_straight()) out.push_back(straight(uniform(rng_, 8.0, 20.0), width()));
-      const double wanted = wanted_turn(25.0);
-      const double sign = std::abs(wanted) > 100.0 * kDeg ? (wanted > 0 ? 1.0 : -1.0)
-                                                           : turn_sign(wanted, 2.0 * kPi);
-      const double radius = uniform(rng_, kHairpinMinRadiusM, kHairpinMaxRadiusM);
-      out.push_back(arc(Feature::kHairpin, radius, sign * uniform(rng_, 150.0, 200.0) * kDeg,
-                        width()));
-      out.push_back(straight(uniform(rng_, 6.0, 14.0), width()));
-      return out;
-    }
+  // chicane: an S-bend that leaves the heading nearly unchanged
+  std::vector<Piece> draw_chicane() {
+    std::vector<Piece> out;
+    const double sign = uniform(rng_, 0.0, 1.0) < 0.5 ? 1.0 : -1.0;
+    const double angle = uniform(rng_, 35.0, 75.0) * kDeg;
+    const double w = width();
+    out.push_back(arc(Feature::kChicane, uniform(rng_, 8.0, 13.0), sign * angle, w));
+    const double between = uniform(rng_, 0.0, 5.0);
+    if (between > 1.0) out.push_back({Feature::kChicane, false, between, 0.0, w});
+    out.push_back(arc(Feature::kChicane, uniform(rng_, 8.0, 13.0),
+                      -sign * angle * uniform(rng_, 0.7, 1.3), w));
+    return out;
+  }
 
-    // straight (never two in a row)
-    if (pick < 0.22 && !last_is_straight()) {
-      const double length = uniform(rng_, 0.0, 1.0) < 0.2 ? uniform(rng_, 40.0, 60.0)
-                                                         : uniform(rng_, 12.0, 35.0);
-      out.push_back(straight(length, width()));
-      return out;
-    }
-
-    // sweeper: a fast constant turn
-    if (pick < 0.45) {
-      const double radius = uniform(rng_, 12.0, kSweeperMaxRadiusM);
-      const double wanted = wanted_turn(radius * 0.8);
-      const double sign = turn_sign(wanted, 50.0 * kDeg);
-      const double angle = turn_angle(wanted, sign, 25.0 * kDeg, 100.0 * kDeg);
-      out.push_back(arc(Feature::kSweeper, radius, sign * angle, width()));
-      return out;
-    }
-
-    // corner: a slower constant turn
-    if (pick < 0.72) {
-      const double radius = uniform(rng_, kCornerMinRadiusM, kCornerMaxRadiusM);
-      const double wanted = wanted_turn(radius);
-      const double sign = turn_sign(wanted, 50.0 * kDeg);
-      const double angle = turn_angle(wanted, sign, 45.0 * kDeg, 120.0 * kDeg);
-      out.push_back(arc(Feature::kCorner, radius, sign * angle, width()));
-      return out;
-    }
-
-    // chicane: an S-bend that leaves the heading nearly unchanged
-    if (pick < 0.88) {
-      const double sign = uniform(rng_, 0.0, 1.0) < 0.5 ? 1.0 : -1.0;
-      const double angle = uniform(rng_, 30.0, 70.0) * kDeg;
-      const double w = width();
-      out.push_back(arc(Feature::kChicane, uniform(rng_, 8.0, 14.0), sign * angle, w));
-      const double between = uniform(rng_, 0.0, 5.0);
-      if (between > 1.0) out.push_back({Feature::kChicane, false, between, 0.0, w});
-      out.push_back(arc(Feature::kChicane, uniform(rng_, 8.0, 14.0),
-                        -sign * angle * uniform(rng_, 0.7, 1.3), w));
-      return out;
-    }
-
-    // slalom: the line weaves around a row of cones, inflections one half period apart;
-    // half-amplitude first and last half waves keep the heading centred on the row
-    if (slaloms_ > 0) return draw_primitive();
+  // slalom: the line weaves around a row of cones with inflections one half period apart;
+  // half-amplitude first and last half waves keep the heading centred on the row
+  std::vector<Piece> draw_slalom() {
+    std::vector<Piece> out;
     if (!last_is_straight()) out.push_back(straight(uniform(rng_, 6.0, 12.0), width()));
     const int half_waves = 2 * static_cast<int>(uniform_int(rng_, 2, 3));
     const double half_period = uniform(rng_, kSlalomMinHalfPeriodM, kSlalomMaxHalfPeriodM);
-    const double peak = uniform(rng_, 0.75, 1.0) * kSlalomMaxCurvature;
+    const double peak = uniform(rng_, 0.8, 1.0) * kSlalomMaxCurvature;
     const double sign = uniform(rng_, 0.0, 1.0) < 0.5 ? 1.0 : -1.0;
     const double w = width();
     for (int i = 0; i < half_waves; ++i) {
@@ -328,27 +433,28 @@ class LayoutDrawer {
     add_laid(primitive, fresh, next);
   }
 
+  // takes a laid primitive: pieces, samples, turtle pose, feature counts and guide progress
   void add_laid(const std::vector<Piece>& primitive, const std::vector<Sample>& fresh,
                 const Turtle& next) {
     for (const Piece& p : primitive) {
       if (p.feature == Feature::kHairpin) ++hairpins_;
-      if (p.feature == Feature::kSlalom && p.sine) slaloms_ = 1;
+      if (p.feature == Feature::kSlalom) slaloms_ = 1;
     }
     pieces_.insert(pieces_.end(), primitive.begin(), primitive.end());
     laid_.insert(laid_.end(), fresh.begin(), fresh.end());
     turtle_ = next;
+    progress_m_ = std::max(progress_m_,
+                           guide_.project(turtle_.position, progress_m_ - 5.0, progress_m_ + 60.0));
   }
 
   Rng& rng_;
   const GeneratorParams& params_;
-  double direction_ = 1.0;
-  double lap_target_m_ = 300.0;
-  double budget_m_ = 250.0;
-  double wobble_deg_ = 0.0;
-  double wobble_waves_ = 1.0;
-  double wobble_phase_ = 0.0;
-  double lead_m_ = 8.0;
+  double direction_;
+  Guide guide_;
+  double lead_m_;
+  double stop_before_m_;
   Turtle turtle_;
+  double progress_m_ = 0.0;
   std::vector<Piece> pieces_;
   std::vector<Sample> laid_;
   int hairpins_ = 0;
@@ -371,8 +477,8 @@ struct DubinsCsc {
 };
 
 // the four CSC Dubins paths (LSL, RSR, LSR, RSL) from one pose to another
-std::vector<DubinsCsc> dubins_csc(const Vec2& p0, double heading0, const Vec2& p1,
-                                  double heading1, double r) {
+std::vector<DubinsCsc> dubins_csc(const Vec2& p0, double heading0, const Vec2& p1, double heading1,
+                                  double r) {
   const auto centre = [r](const Vec2& p, double heading, double side) {
     return Vec2(p + side * r * Vec2(-std::sin(heading), std::cos(heading)));
   };
@@ -408,7 +514,8 @@ std::vector<Piece> closing_pieces(const DubinsCsc& path, double width1, double w
                    (turn > 0.0 ? 1.0 : -1.0) / path.radius_m, w});
   };
   add_arc(path.turn1, width1);
-  if (path.straight_m > 0.05) out.push_back({Feature::kStraight, false, path.straight_m, 0.0, width2});
+  if (path.straight_m > 0.05)
+    out.push_back({Feature::kStraight, false, path.straight_m, 0.0, width2});
   add_arc(path.turn2, width3);
   return out;
 }
@@ -442,7 +549,9 @@ std::optional<std::vector<Piece>> close_loop(LayoutDrawer& drawer, std::vector<P
   std::vector<DubinsCsc> candidates;
   for (double r : kClosingRadiiM) {
     for (const DubinsCsc& c : dubins_csc(end.position, end.heading, lead_start, 0.0, r)) {
-      if (std::abs(c.turn1) < 1.5 * kPi && std::abs(c.turn2) < 1.5 * kPi) candidates.push_back(c);
+      if (std::abs(c.turn1) < 1.5 * kPi && std::abs(c.turn2) < 1.5 * kPi &&
+          c.straight_m <= kMaxClosingStraightM)
+        candidates.push_back(c);
     }
   }
   std::sort(candidates.begin(), candidates.end(),
@@ -480,7 +589,6 @@ std::vector<Sample> sample_lap(const std::vector<Piece>& lap) {
   Turtle t;
   std::vector<Sample> samples = lay_pieces(lap, kSampleStepM, t);
   const size_t n = samples.size();
-  const double lap_m = t.s_m;
 
   // moving average of the width over +- kWidthBlendM (piecewise constant -> linear ramps)
   std::vector<double> w(n);
@@ -492,7 +600,6 @@ std::vector<Sample> sample_lap(const std::vector<Piece>& lap) {
     sum += samples[(i + half + 1) % n].width_m - samples[(i + n - half) % n].width_m;
   }
   for (size_t i = 0; i < n; ++i) samples[i].width_m = w[i];
-  (void)lap_m;
   return samples;
 }
 
@@ -516,13 +623,16 @@ Sample sample_at(const std::vector<Sample>& samples, double lap_m, double s) {
 }
 
 // left normal of a heading
-Vec2 left_normal(double heading) { return {-std::sin(heading), std::cos(heading)}; }
+Vec2 left_normal(double heading) {
+  return {-std::sin(heading), std::cos(heading)};
+}
 
 // cone spacing wanted where the centre line has this curvature
 double spacing_for(double curvature, double straight_spacing_m) {
   const double k = std::abs(curvature);
   const double f = std::clamp((k - kWideCurvature) / (kTightCurvature - kWideCurvature), 0.0, 1.0);
-  return straight_spacing_m + f * (std::min(kTightSpacingM, straight_spacing_m) - straight_spacing_m);
+  return straight_spacing_m +
+         f * (std::min(kTightSpacingM, straight_spacing_m) - straight_spacing_m);
 }
 
 // cone positions along one boundary (side +1 left, -1 right): the boundary is walked from the
@@ -590,10 +700,10 @@ Track build_track(const std::vector<Sample>& samples, double lap_m, uint64_t see
   for (const double along : {-kBigConeHalfGapM, kBigConeHalfGapM}) {
     const Sample c = sample_at(samples, lap_m, kStartLineM + along);
     for (const double side : {1.0, -1.0}) {
-      const Vec2 p = c.position +
-                     side * (0.5 * c.width_m + kBigConeOutsideM) * left_normal(c.heading);
-      track.cones.push_back({static_cast<int>(track.cones.size()), ConeClass::kOrangeBig, p,
-                             std::nullopt});
+      const Vec2 p =
+          c.position + side * (0.5 * c.width_m + kBigConeOutsideM) * left_normal(c.heading);
+      track.cones.push_back(
+          {static_cast<int>(track.cones.size()), ConeClass::kOrangeBig, p, std::nullopt});
     }
   }
 
@@ -606,8 +716,24 @@ Track build_track(const std::vector<Sample>& samples, double lap_m, uint64_t see
   const int points = std::max(3, static_cast<int>(std::round(lap_m)));
   track.centre_line.reserve(points);
   for (int i = 0; i < points; ++i)
-    track.centre_line.push_back(sample_at(samples, lap_m, kStartLineM + i * lap_m / points).position);
+    track.centre_line.push_back(
+        sample_at(samples, lap_m, kStartLineM + i * lap_m / points).position);
   return track;
+}
+
+// counts the primitives of a lap into the report
+void count_features(const std::vector<Piece>& lap, GenerationReport& report) {
+  int chicane_arcs = 0;
+  for (size_t i = 0; i < lap.size(); ++i) {
+    const Piece& p = lap[i];
+    if (p.feature == Feature::kHairpin) ++report.hairpins;
+    if (p.feature == Feature::kSweeper) ++report.sweepers;
+    if (p.feature == Feature::kCorner) ++report.corners;
+    if (p.feature == Feature::kChicane && p.curvature != 0.0) ++chicane_arcs;
+    if (p.feature == Feature::kSlalom && (i == 0 || lap[i - 1].feature != Feature::kSlalom))
+      ++report.slaloms;
+  }
+  report.chicanes = chicane_arcs / 2;
 }
 
 // checks the parameters; throws std::invalid_argument on a layout the rules cannot allow
@@ -659,6 +785,8 @@ Track generate_circuit(uint64_t seed, const GeneratorParams& params, GenerationR
       ++r.rejected_rules;
       continue;
     }
+    count_features(*lap, r);
+    r.lap_m = lap_m;
     return track;
   }
   throw std::runtime_error("generate_circuit: no compliant layout for seed " +

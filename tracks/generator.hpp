@@ -32,12 +32,22 @@ struct GenerationReport {
   int rejected_geometry = 0;
   /// Layouts that passed the geometry checks but broke a rule of check_rules.
   int rejected_rules = 0;
+  /// Primitives of the accepted layout, by kind.
+  int hairpins = 0;
+  int chicanes = 0;
+  int slaloms = 0;
+  int sweepers = 0;
+  int corners = 0;
+  /// Centre-line length of the accepted lap, metres.
+  double lap_m = 0.0;
 };
 
 /// Builds a closed circuit of straights, sweepers, hairpins, chicanes and slaloms, with blue
 /// cones on the left, yellow on the right, big orange cones at the start/finish line and a start
-/// pose behind it. Same seed, same track. Throws std::runtime_error if no compliant layout is
-/// found within max_attempts.
+/// pose behind it. Same seed, same track. Track frame: the start pose at the origin facing +x,
+/// the start line (and its timing gate) 6 m ahead; the lanes and the designed centre line (every
+/// ~1 m) begin at the start line. Throws std::invalid_argument for parameters no compliant
+/// layout can meet, std::runtime_error if no compliant layout is found within max_attempts.
 Track generate_circuit(uint64_t seed, const GeneratorParams& params = {});
 
 /// As above, and fills `report` (when not null) with the attempts it took.
