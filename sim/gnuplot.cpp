@@ -47,7 +47,7 @@ void render_png(const std::string& script, const std::vector<PlotData>& data,
     std::ofstream gp(script_file);
     if (!gp) throw std::runtime_error(script_file.string() + ": cannot write the plot script");
     gp << "set terminal pngcairo size " << width_px << "," << height_px
-       << " font 'sans,10'\n";
+       << " noenhanced font 'sans,10'\n";
     gp << "set output '" << partial.string() << "'\n";
     gp.precision(10);
     for (const PlotData& d : data) {

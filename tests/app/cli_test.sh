@@ -24,7 +24,7 @@ check() {  # check NAME EXPECTED_STATUS COMMAND... ; output in $work/out, $work/
   return 0
 }
 expect_text() {  # expect_text NAME FILE REGEX
-  if ! grep -Eq "$3" "$2"; then
+  if ! grep -Eq -e "$3" "$2"; then
     echo "FAIL $1: $(basename "$2") does not match /$3/"
     head -5 "$2" | sed 's/^/  /'
     failures=$((failures + 1))
