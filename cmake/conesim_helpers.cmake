@@ -20,7 +20,12 @@ function(conesim_tests folder)
     target_compile_definitions(${target} PRIVATE
       CONESIM_TEST_DATA="${PROJECT_SOURCE_DIR}/tests/data"
       CONESIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+    # files named *_slow_test.cpp run only with `./conesim test --all`
+    set(labels ${folder})
+    if(stem MATCHES "_slow_test$")
+      list(APPEND labels slow)
+    endif()
     gtest_discover_tests(${target} TEST_PREFIX "${folder}." DISCOVERY_TIMEOUT 60
-      PROPERTIES LABELS "${folder}")
+      PROPERTIES LABELS "${labels}" TIMEOUT 1800)
   endforeach()
 endfunction()

@@ -4,6 +4,7 @@
 // It sees only core types: the estimate may come from SLAM or, for now, from ground truth.
 
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "core/autonomy_types.hpp"
@@ -33,6 +34,10 @@ struct DriverParams {
   int trackdrive_laps = 10;
   /// Half width assumed when only one boundary is visible, metres.
   double assumed_half_width_m = 1.6;
+  /// Acceleration requested on the acceleration straight (full power: the car limits it), m/s^2.
+  double launch_accel_mps2 = 15.0;
+  /// Gain of the speed controller: m/s^2 per m/s of speed error.
+  double speed_gain_per_s = 2.0;
 
   /// Empty when usable, otherwise "key: what was expected".
   std::string validate() const;
@@ -42,6 +47,8 @@ struct DriverParams {
 struct VehicleGeometry {
   double wheelbase_m = 1.53;
   double max_steer_rad = 0.4712;
+  /// Distance from the reference point (rear axle centre) forward to the front wing, metres.
+  double rear_axle_to_front_m = 2.25;
 };
 
 /// Everything the driver gets each time it runs.
@@ -62,6 +69,10 @@ struct DriverStatus {
   std::string state;
   /// The path currently followed, in the map frame (for plots).
   std::vector<core::Vec2> path;
+  /// Speed the car is asked to reach now, m/s.
+  double target_speed_mps = 0.0;
+  /// Distance the reference point has travelled since the start, metres.
+  double odometer_m = 0.0;
 };
 
 /// One driver per run; not copyable (holds the mission state).

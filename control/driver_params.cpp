@@ -17,6 +17,8 @@ std::string DriverParams::validate() const {
       {"lookahead_min_m", lookahead_min_m},
       {"lookahead_gain_s", lookahead_gain_s},
       {"assumed_half_width_m", assumed_half_width_m},
+      {"launch_accel_mps2", launch_accel_mps2},
+      {"speed_gain_per_s", speed_gain_per_s},
   };
   for (const auto& [key, value] : positive) {
     if (!std::isfinite(value) || value <= 0.0 || value > 1000.0) {

@@ -115,7 +115,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     // skidpad is driven from its known layout
     for (const tracks::Cone& c : track.cones) prior_map.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
   }
-  control::Driver driver(s.event, s.driver, {vp.wheelbase_m, vp.max_steer_rad}, prior_map);
+  control::Driver driver(s.event, s.driver, {vp.wheelbase_m, vp.max_steer_rad, vp.front_overhang_from_rear_axle_m}, prior_map);
 
   // the schedule on the integer clock
   const TimeUs step_us = core::from_seconds(car.timestep_s());

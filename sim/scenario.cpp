@@ -144,6 +144,8 @@ std::vector<Field> driver_fields(control::DriverParams& p, const Where& w) {
       number("lookahead_gain_s", p.lookahead_gain_s, w),
       integer("trackdrive_laps", p.trackdrive_laps, w),
       number("assumed_half_width_m", p.assumed_half_width_m, w),
+      number("launch_accel_mps2", p.launch_accel_mps2, w),
+      number("speed_gain_per_s", p.speed_gain_per_s, w),
   };
 }
 

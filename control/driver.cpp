@@ -1,0 +1,441 @@
+#include "control/driver.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+
+#include "control/lap_line.hpp"
+#include "control/path.hpp"
+#include "control/path_planner.hpp"
+#include "control/pure_pursuit.hpp"
+#include "control/skidpad_plan.hpp"
+#include "control/speed_profile.hpp"
+#include "control/straight_course.hpp"
+
+namespace conesim::control {
+
+namespace {
+
+using core::EventType;
+using core::MapCone;
+using core::Pose2;
+using core::Vec2;
+using core::VehicleCommand;
+
+// the car counts as stopped below this speed, m/s
+constexpr double kStoppedSpeedMps = 0.3;
+// the speed target is read this far ahead in time, to make up for the actuator lag, s
+constexpr double kSpeedPreviewS = 0.2;
+// the feed-forward acceleration is the profile's slope over this distance, metres
+constexpr double kFeedForwardSpanM = 1.0;
+// cones within this distance of the car feed the local planner, metres
+constexpr double kPlanningRadiusM = 30.0;
+// a perceived cone this close to a map cone is that cone, metres
+constexpr double kSameConeM = 0.7;
+// local path length ahead of the car while exploring, metres
+constexpr double kExploreHorizonM = 25.0;
+// a local path shorter than this is not trusted: the previous one is kept, metres
+constexpr double kMinLocalPathM = 4.0;
+// share of the braking limit planned for stopping at the end of the known path
+constexpr double kEndOfPathDecelShare = 0.5;
+// a lap counts only after this distance since the previous one (or the start), metres
+constexpr double kMinLapDistanceM = 100.0;
+// the lap line is searched among the big orange cones while the car is this close to the
+// start (by distance travelled), metres
+constexpr double kLapLineSearchOdometerM = 40.0;
+// half length of the assumed line through the front wing when no big orange cone is known
+constexpr double kFallbackLineHalfWidthM = 4.0;
+// progress along a long path is searched this many segments behind and ahead of the last one
+constexpr size_t kProgressBehind = 4;
+constexpr size_t kProgressWindow = 60;
+// the trace of lap 1 is recorded every this distance (fallback circuit), metres
+constexpr double kTraceStepM = 0.5;
+// acceleration: distance from the start line to the finish line and the braking zone's length
+// (FSG handbook), and how far past the finish line the rear axle is before braking, metres
+constexpr double kAccelerationLengthM = 75.0;
+constexpr double kBrakingZoneM = 75.0;
+constexpr double kBrakePastFinishM = 1.0;
+// acceleration: big orange cones beyond this distance from the start belong to the finish gate
+constexpr double kFinishGateSearchM = 40.0;
+// acceleration: margin kept before the end of the braking zone, and share of the braking limit
+// assumed when checking that the car can still stop in it
+constexpr double kBrakingZoneMarginM = 10.0;
+constexpr double kBrakingZoneDecelShare = 0.8;
+// acceleration: the course path reaches this far ahead of the car, metres
+constexpr double kCourseAheadM = 60.0;
+// skidpad: the rear axle stops this far past the timing line (the stop line is 21 m out)
+constexpr double kSkidpadStopAfterM = 12.0;
+// skidpad: close enough to the stop point to hold the car once slow, metres
+constexpr double kSkidpadStopToleranceM = 4.0;
+// skidpad laps: two right, two left
+constexpr int kSkidpadLaps = 4;
+
+// what the mission is doing
+enum class Phase { kLaunch, kSkidpad, kExplore, kFast, kBraking, kStopped };
+
+// short name of a phase for the status line
+const char* phase_name(Phase p) {
+  switch (p) {
+    case Phase::kLaunch:
+      return "launch";
+    case Phase::kSkidpad:
+      return "skidpad";
+    case Phase::kExplore:
+      return "explore";
+    case Phase::kFast:
+      return "fast";
+    case Phase::kBraking:
+      return "braking";
+    case Phase::kStopped:
+      return "stopped";
+  }
+  return "unknown";
+}
+
+// the map cones near the car plus the perceived cones not yet in the map, in the map frame
+std::vector<MapCone> cones_near(const core::Estimate& estimate,
+                                const core::ConeObservations& observations, double radius_m) {
+  std::vector<MapCone> cones;
+  const Vec2 here = estimate.pose.position();
+  for (const MapCone& c : estimate.map)
+    if ((c.position - here).norm() <= radius_m) cones.push_back(c);
+  const size_t from_map = cones.size();
+  for (const core::ConeObservation& o : observations.cones) {
+    const Vec2 p = estimate.pose.transform(o.position);
+    bool known = false;
+    for (size_t i = 0; i < from_map && !known; ++i)
+      known = (cones[i].position - p).norm() < kSameConeM;
+    if (!known) cones.push_back({-1, o.cls, p, o.covariance});
+  }
+  return cones;
+}
+
+}  // namespace
+
+struct Driver::Impl {
+  // fixed for the run
+  EventType event;
+  DriverParams params;
+  VehicleGeometry vehicle;
+  std::vector<MapCone> prior_map;
+  PlannerParams planner;
+  PurePursuitParams pursuit;
+
+  // mission state
+  DriverStatus status;
+  Phase phase = Phase::kExplore;
+  bool started = false;
+  Pose2 start;
+  Vec2 last_position = Vec2::Zero();
+  Vec2 last_front = Vec2::Zero();
+
+  // the path followed, its speed profile and the car's progress along it
+  Path path;
+  SpeedProfile profile;
+  double lap_m = 0.0;
+  size_t progress_segment = 0;
+  bool track_progress = false;
+
+  // lap counting on the start/finish line, and the trace of lap 1
+  LapLine lap_line;
+  double odometer_at_lap = 0.0;
+  std::vector<Vec2> trace;
+  std::optional<size_t> trace_lap_start;
+
+  // skidpad lap ends; acceleration finish line (along the start heading)
+  std::vector<double> skidpad_lap_end_s;
+  double skidpad_stop_s = 0.0;
+  double finish_x_m = 0.0;
+
+  Impl(EventType e, const DriverParams& p, const VehicleGeometry& v, std::vector<MapCone> prior)
+      : event(e), params(p), vehicle(v), prior_map(std::move(prior)) {
+    planner.assumed_half_width_m = p.assumed_half_width_m;
+    pursuit = {v.wheelbase_m, v.max_steer_rad, p.lookahead_min_m, p.lookahead_gain_s};
+  }
+
+  // one update: bookkeeping, then the event's mission
+  VehicleCommand update(const DriverInput& in) {
+    const Pose2& pose = in.estimate.pose;
+    if (!started) begin(in);
+    const Vec2 front = pose.transform({vehicle.rear_axle_to_front_m, 0.0});
+    status.odometer_m += (pose.position() - last_position).norm();
+
+    VehicleCommand cmd;
+    switch (event) {
+      case EventType::kAcceleration:
+        cmd = acceleration(in);
+        break;
+      case EventType::kSkidpad:
+        cmd = skidpad(in);
+        break;
+      case EventType::kAutocross:
+      case EventType::kTrackdrive:
+        cmd = circuit(in, front);
+        break;
+    }
+
+    // braking ends in a held stop
+    if (phase == Phase::kBraking && std::abs(in.estimate.speed_mps) < kStoppedSpeedMps)
+      phase = Phase::kStopped;
+    if (phase == Phase::kStopped) {
+      status.finished = true;
+      cmd.accel_mps2 = -params.max_decel_mps2;
+      cmd.hold_stopped = true;
+      status.target_speed_mps = 0.0;
+    }
+    status.state = phase_name(phase);
+    last_position = pose.position();
+    last_front = front;
+    return cmd;
+  }
+
+  // the first update: the start pose and the mission's initial plan
+  void begin(const DriverInput& in) {
+    started = true;
+    start = in.estimate.pose;
+    last_position = start.position();
+    last_front = start.transform({vehicle.rear_axle_to_front_m, 0.0});
+    lap_line = lap_line_at(last_front, start, kFallbackLineHalfWidthM);
+    switch (event) {
+      case EventType::kAcceleration:
+        phase = Phase::kLaunch;
+        finish_x_m = kAccelerationLengthM + vehicle.rear_axle_to_front_m;
+        break;
+      case EventType::kSkidpad:
+        begin_skidpad(in);
+        break;
+      case EventType::kAutocross:
+      case EventType::kTrackdrive:
+        phase = Phase::kExplore;
+        break;
+    }
+  }
+
+  // steering along the current path, and the speed command towards its profile
+  VehicleCommand follow(const core::Estimate& est, double speed_cap) {
+    VehicleCommand cmd;
+    if (path.points.size() < 2) {
+      status.target_speed_mps = 0.0;
+      cmd.accel_mps2 = -params.max_decel_mps2 * kEndOfPathDecelShare;
+      return cmd;
+    }
+
+    // where the car is on the path: a window ahead of the last progress on long paths
+    PathProjection here;
+    if (track_progress) {
+      const size_t n = path.segment_count();
+      size_t first = progress_segment >= kProgressBehind ? progress_segment - kProgressBehind : 0;
+      if (path.closed) first = (progress_segment + n - kProgressBehind) % n;
+      here = project_onto(path, est.pose.position(), first, kProgressWindow);
+      progress_segment = here.segment;
+    } else {
+      here = project_onto(path, est.pose.position(), 0, path.segment_count());
+    }
+    const std::vector<double> s = path.arc_lengths();
+    const double s_here = s[here.segment] + here.t * (s[here.segment + 1] - s[here.segment]);
+    status.target_speed_mps = speed_command_target(est.speed_mps, s_here);
+
+    // pure pursuit steering and the speed command
+    cmd.steer_rad = pure_pursuit(pursuit, est.pose, est.speed_mps, path, here).steer_rad;
+    cmd.accel_mps2 = speed_command(est.speed_mps, s_here, speed_cap);
+    return cmd;
+  }
+
+  // the profile speed a short preview ahead of s
+  double speed_command_target(double v, double s) const {
+    return profile.speed_at(s + std::max(0.0, v) * kSpeedPreviewS, lap_m);
+  }
+
+  // P-control towards the profile speed plus its slope as feed-forward
+  double speed_command(double v, double s, double speed_cap) const {
+    const double s0 = s + std::max(0.0, v) * kSpeedPreviewS;
+    const double v0 = std::min(speed_cap, profile.speed_at(s0, lap_m));
+    const double v1 = std::min(speed_cap, profile.speed_at(s0 + kFeedForwardSpanM, lap_m));
+    const double feed_forward = (v1 * v1 - v0 * v0) / (2.0 * kFeedForwardSpanM);
+    const double a = feed_forward + params.speed_gain_per_s * (v0 - v);
+    return std::clamp(a, -params.max_decel_mps2, params.max_accel_mps2);
+  }
+
+  // the speed limits with a cap
+  SpeedLimits limits(double cap) const {
+    return {cap, params.max_lateral_accel_mps2, params.max_accel_mps2, params.max_decel_mps2};
+  }
+
+  // --- acceleration ---------------------------------------------------------------------------
+
+  // straight along the fitted course at full power, brake past the finish, stop in the zone
+  VehicleCommand acceleration(const DriverInput& in) {
+    const core::Estimate& est = in.estimate;
+    const std::vector<MapCone> cones = cones_near(est, in.observations, 1e9);
+
+    // the course from the cones, and the finish line from the far big orange cones
+    const StraightCourse course = fit_straight_course(cones, start, params.assumed_half_width_m);
+    double finish_sum = 0.0;
+    int finish_n = 0;
+    for (const MapCone& c : cones) {
+      const double x = start.inverse_transform(c.position).x();
+      if (c.cls == core::ConeClass::kOrangeBig && x > kFinishGateSearchM)
+        finish_sum += x, ++finish_n;
+    }
+    if (finish_n > 0) finish_x_m = finish_sum / finish_n;
+
+    // follow the course; the profile is flat at the speed cap
+    const double x = start.inverse_transform(est.pose.position()).x();
+    path = straight_course_path(course, start, x - 2.0, x + kCourseAheadM);
+    profile = plan_speed(path, limits(params.acceleration_speed_mps));
+    lap_m = 0.0;
+    track_progress = false;
+    status.path = path.points;
+    VehicleCommand cmd = follow(est, params.acceleration_speed_mps);
+
+    // brake once past the finish line, or earlier if the braking zone would be too short
+    const double v = std::max(0.0, est.speed_mps);
+    const double stop_x = x + v * v / (2.0 * kBrakingZoneDecelShare * params.max_decel_mps2);
+    const double zone_end_x = finish_x_m + kBrakingZoneM - vehicle.rear_axle_to_front_m;
+    if (phase == Phase::kLaunch &&
+        (x > finish_x_m + kBrakePastFinishM || stop_x > zone_end_x - kBrakingZoneMarginM))
+      phase = Phase::kBraking;
+    if (phase == Phase::kLaunch) {
+      cmd.accel_mps2 = v < params.acceleration_speed_mps - 1.0
+                           ? params.launch_accel_mps2
+                           : params.speed_gain_per_s * (params.acceleration_speed_mps - v);
+      status.target_speed_mps = params.acceleration_speed_mps;
+    } else {
+      cmd.accel_mps2 = -params.max_decel_mps2;
+      status.target_speed_mps = 0.0;
+    }
+    return cmd;
+  }
+
+  // --- skidpad --------------------------------------------------------------------------------
+
+  // the figure-eight path on the fitted layout
+  void begin_skidpad(const DriverInput& in) {
+    phase = Phase::kSkidpad;
+    const std::vector<MapCone>& layout = prior_map.empty() ? in.estimate.map : prior_map;
+    const std::optional<SkidpadGeometry> g = fit_skidpad(layout, start);
+    if (!g) {
+      phase = Phase::kStopped;  // no layout to drive on: stay put
+      return;
+    }
+    const SkidpadPlan plan = plan_skidpad(*g, start, kSkidpadStopAfterM);
+    path = plan.path;
+    skidpad_lap_end_s = plan.lap_end_s;
+    skidpad_stop_s = plan.stop_s;
+    profile = plan_speed(path, limits(params.skidpad_speed_mps), 0.0, 0.0);
+    lap_m = 0.0;
+    track_progress = true;
+    progress_segment = project_onto(path, start.position(), 0, path.segment_count()).segment;
+    status.path = path.points;
+  }
+
+  // follow the figure eight, count laps by progress, hold at the end of the exit
+  VehicleCommand skidpad(const DriverInput& in) {
+    if (phase == Phase::kStopped) return {};
+    VehicleCommand cmd = follow(in.estimate, params.skidpad_speed_mps);
+    const std::vector<double> s = path.arc_lengths();
+    const PathProjection here =
+        project_onto(path, in.estimate.pose.position(), progress_segment, 2);
+    const double s_here = s[here.segment] + here.t * (s[here.segment + 1] - s[here.segment]);
+    status.laps_counted =
+        static_cast<int>(std::count_if(skidpad_lap_end_s.begin(), skidpad_lap_end_s.end(),
+                                       [&](double end) { return s_here >= end; }));
+    const double remaining = skidpad_stop_s - s_here;
+    if (status.laps_counted >= kSkidpadLaps &&
+        (remaining < 0.3 ||
+         (remaining < kSkidpadStopToleranceM && in.estimate.speed_mps < kStoppedSpeedMps)))
+      phase = Phase::kStopped;
+    return cmd;
+  }
+
+  // --- autocross and trackdrive ---------------------------------------------------------------
+
+  // explore lap 1 from the cones, then (trackdrive) fast laps on the known circuit
+  VehicleCommand circuit(const DriverInput& in, const Vec2& front) {
+    const core::Estimate& est = in.estimate;
+
+    // the start/finish line from the big orange cones near the start
+    if (status.odometer_m < kLapLineSearchOdometerM) {
+      const std::optional<LapLine> line = lap_line_from_cones(est.map, start);
+      if (line) lap_line = *line;
+    }
+
+    // lap counting: a forward crossing of the line by the front wing, far enough from the last
+    if (crosses_forward(lap_line, last_front, front)) {
+      if (status.odometer_m - odometer_at_lap > kMinLapDistanceM) {
+        ++status.laps_counted;
+        odometer_at_lap = status.odometer_m;
+        on_lap(est);
+      } else if (!trace_lap_start) {
+        trace_lap_start = trace.size();  // the start crossing opens the lap-1 trace
+      }
+    }
+    if (phase == Phase::kExplore &&
+        (trace.empty() || (est.pose.position() - trace.back()).norm() >= kTraceStepM))
+      trace.push_back(est.pose.position());
+
+    // exploring (and braking after an autocross) replans from the cones near the car
+    if (phase == Phase::kExplore || (phase == Phase::kBraking && !path.closed)) {
+      const Path local = plan_local_path(cones_near(est, in.observations, kPlanningRadiusM),
+                                         est.pose, planner, kExploreHorizonM);
+      if (local.length() >= kMinLocalPathM || path.points.size() < 2) {
+        path = local;
+        const double end_v =
+            std::sqrt(2.0 * kEndOfPathDecelShare * params.max_decel_mps2 * path.length());
+        profile = plan_speed(path, limits(params.explore_speed_mps), est.speed_mps, end_v);
+        lap_m = 0.0;
+        track_progress = false;
+        status.path = path.points;
+      }
+    }
+    const double cap = phase == Phase::kFast ? params.fast_speed_mps : params.explore_speed_mps;
+    VehicleCommand cmd = follow(est, cap);
+    if (phase == Phase::kBraking) {
+      cmd.accel_mps2 = -params.max_decel_mps2;
+      status.target_speed_mps = 0.0;
+    }
+    return cmd;
+  }
+
+  // a lap is done: brake after the last one, or switch to the fast circuit after lap 1
+  void on_lap(const core::Estimate& est) {
+    const int laps = event == EventType::kAutocross ? 1 : params.trackdrive_laps;
+    if (status.laps_counted >= laps) {
+      phase = Phase::kBraking;
+      return;
+    }
+    if (phase != Phase::kExplore) return;
+
+    // the whole circuit from the map, else the trace of lap 1
+    std::optional<Path> circuit = plan_circuit(est.map, start, planner);
+    if (!circuit && trace_lap_start && trace.size() > *trace_lap_start + 20) {
+      std::vector<Vec2> lap(trace.begin() + static_cast<long>(*trace_lap_start), trace.end());
+      lap = smooth(resample(lap, 1.0, true), 3, true);
+      circuit = Path{resample(lap, 1.0, true), true};
+    }
+    if (!circuit) return;  // keep exploring
+    path = *circuit;
+    profile = plan_speed(path, limits(params.fast_speed_mps));
+    lap_m = path.length();
+    track_progress = true;
+    progress_segment = project_onto(path, est.pose.position(), 0, path.segment_count()).segment;
+    status.path = path.points;
+    phase = Phase::kFast;
+  }
+};
+
+Driver::Driver(core::EventType event, const DriverParams& params, const VehicleGeometry& vehicle,
+               std::vector<core::MapCone> prior_map)
+    : impl_(std::make_unique<Impl>(event, params, vehicle, std::move(prior_map))) {}
+
+Driver::~Driver() = default;
+
+core::VehicleCommand Driver::update(const DriverInput& input) {
+  return impl_->update(input);
+}
+
+const DriverStatus& Driver::status() const {
+  return impl_->status;
+}
+
+}  // namespace conesim::control

@@ -1,0 +1,58 @@
+#pragma once
+// A driving path as a polyline in the map frame, and the geometry the driver needs on it:
+// arc length, resampling, smoothing, curvature and projection of the car onto it.
+
+#include <cstddef>
+#include <vector>
+
+#include "core/geometry.hpp"
+
+namespace conesim::control {
+
+using core::Vec2;
+
+/// A polyline to drive along. A closed path joins its last point to its first one and does not
+/// repeat the first point at the end.
+struct Path {
+  std::vector<Vec2> points;
+  bool closed = false;
+
+  /// Number of segments: n - 1 for an open path, n for a closed one (0 when n < 2).
+  size_t segment_count() const;
+  /// The end point of segment i (wraps on a closed path).
+  const Vec2& segment_end(size_t i) const { return points[(i + 1) % points.size()]; }
+  /// Arc length at each point from the first one; a closed path has one more entry, the lap.
+  std::vector<double> arc_lengths() const;
+  /// Total length (a closed path includes the closing segment), metres.
+  double length() const;
+};
+
+/// Where a point projects onto a path.
+struct PathProjection {
+  /// Segment index and the fraction along it, in [0, 1].
+  size_t segment = 0;
+  double t = 0.0;
+  /// The nearest point of the path and its distance to the query point, metres.
+  Vec2 point = Vec2::Zero();
+  double distance_m = 0.0;
+};
+
+/// Projects p onto the segments first .. first + count - 1 of the path (wrapping on a closed
+/// path, clipped at the end of an open one). Pass count = segment_count() for a global search.
+PathProjection project_onto(const Path& path, const Vec2& p, size_t first, size_t count);
+
+/// The polyline resampled every spacing_m (the last step of an open path may be shorter).
+std::vector<Vec2> resample(const std::vector<Vec2>& points, double spacing_m, bool closed);
+
+/// Moving average over 2 * half_window + 1 points; an open path keeps its first point and
+/// shrinks the window at its ends.
+std::vector<Vec2> smooth(const std::vector<Vec2>& points, int half_window, bool closed);
+
+/// Signed curvature (positive left) at each point from the circle through the points `stride`
+/// before and after it; an open path copies the nearest computable value to its ends.
+std::vector<double> curvatures(const std::vector<Vec2>& points, bool closed, int stride = 2);
+
+/// Signed curvature of the circle through three points (0 when they are collinear).
+double three_point_curvature(const Vec2& a, const Vec2& b, const Vec2& c);
+
+}  // namespace conesim::control

@@ -1,0 +1,288 @@
+#include "control/path_planner.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace conesim::control {
+
+namespace {
+
+using core::ConeClass;
+using core::MapCone;
+using core::Pose2;
+
+// window of chain segments searched ahead of the last one used by the walk
+constexpr size_t kWalkWindowSegments = 4;
+// the first cone of a chain is searched beside the car within this longitudinal window, metres
+constexpr double kStartBehindM = 6.0;
+constexpr double kStartAheadM = 15.0;
+// links shorter than this join two detections of one cone, metres
+constexpr double kMinLinkM = 0.5;
+// the turn a chain is expected to keep from one link to the next is capped at this, radians
+constexpr double kMaxPredictedTurnRad = 0.6;
+// a closed chain needs this many cones before it may return to its first one
+constexpr size_t kMinClosedChainCones = 8;
+// a walk may run straight before the first cone of a boundary for this long, metres
+constexpr double kMaxWalkBeforeChainsM = 12.0;
+// chains are rebuilt at most this many times after dropping cones that sit on the other side
+constexpr int kMaxChainRounds = 3;
+// each walk step advances at least this share of a step along the walk direction
+constexpr double kMinStepShare = 0.5;
+// a circuit walk may stop at the start once it has gone this far, metres
+constexpr double kMinCircuitM = 50.0;
+
+// extra cost of a cone in a chain of `side_class`; negative when it may not be used
+double class_penalty(ConeClass cls, ConeClass side_class, const PlannerParams& params) {
+  if (cls == side_class) return 0.0;
+  if (cls == ConeClass::kOrangeSmall || cls == ConeClass::kOrangeBig || cls == ConeClass::kUnknown)
+    return params.off_class_penalty_m;
+  return -1.0;
+}
+
+// one boundary chained from the cone beside `from` on side `side` (+1 left, -1 right)
+std::vector<Vec2> chain_one(const std::vector<MapCone>& cones, ConeClass side_class, double side,
+                            const Pose2& from, const PlannerParams& params, double max_length_m,
+                            bool whole_circuit, std::vector<bool>& used, bool& closed,
+                            std::vector<int>& ids) {
+  closed = false;
+  std::vector<Vec2> chain;
+  ids.clear();
+
+  // first cone: the one nearest the expected boundary point beside the car
+  const double hw = params.assumed_half_width_m;
+  int first = -1;
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < cones.size(); ++i) {
+    const double penalty = class_penalty(cones[i].cls, side_class, params);
+    if (used[i] || penalty < 0.0) continue;
+    const Vec2 local = from.inverse_transform(cones[i].position);
+    const double lateral = side * local.y();
+    if (local.x() < -kStartBehindM || local.x() > kStartAheadM) continue;
+    if (lateral < 0.3 || lateral > 2.0 * hw + 0.5) continue;
+    const double cost =
+        local.x() * local.x() + 4.0 * (lateral - hw) * (lateral - hw) + penalty * penalty;
+    if (cost < best) best = cost, first = static_cast<int>(i);
+  }
+  if (first < 0) return chain;
+  used[static_cast<size_t>(first)] = true;
+  chain.push_back(cones[static_cast<size_t>(first)].position);
+  ids.push_back(first);
+
+  // links: the cheapest unused cone ahead within the turn limit, until none or long enough;
+  // a link is judged against the direction the boundary would take if it kept turning as it
+  // did at the last cone (a constant-curvature guess), so that a turn is followed rather than
+  // cut short by cones of a nearby part of the track
+  Vec2 dir = from.heading();
+  double last_turn = 0.0;
+  double length = 0.0;
+  while (length < max_length_m) {
+    const Vec2& cur = chain.back();
+    int next = -1;
+    best = std::numeric_limits<double>::infinity();
+    for (size_t i = 0; i < cones.size(); ++i) {
+      const bool is_first =
+          whole_circuit && static_cast<int>(i) == first && chain.size() >= kMinClosedChainCones;
+      if (used[i] && !is_first) continue;
+      const double penalty = class_penalty(cones[i].cls, side_class, params);
+      if (penalty < 0.0) continue;
+      const Vec2 v = cones[i].position - cur;
+      const double d = v.norm();
+      if (d < kMinLinkM || d > params.max_link_m) continue;
+      const double turn = std::atan2(core::cross(dir, v), dir.dot(v));
+      if (std::abs(turn) > params.max_link_turn_rad) continue;
+      const double bend = turn - std::clamp(last_turn, -kMaxPredictedTurnRad, kMaxPredictedTurnRad);
+      const double cost = d * (1.0 + params.turn_weight * bend * bend) + penalty;
+      if (cost < best) best = cost, next = static_cast<int>(i);
+    }
+    if (next < 0) break;
+    if (next == first) {
+      closed = true;
+      break;
+    }
+    const Vec2 v = cones[static_cast<size_t>(next)].position - cur;
+    used[static_cast<size_t>(next)] = true;
+    chain.push_back(cones[static_cast<size_t>(next)].position);
+    ids.push_back(next);
+    length += v.norm();
+    last_turn = std::atan2(core::cross(dir, v), dir.dot(v));
+    dir = v.normalized();
+  }
+  return chain;
+}
+
+// what the walk finds of one boundary near a point
+struct SideHit {
+  enum class Kind { kFound, kBefore, kAfter, kFar } kind = Kind::kFar;
+  Vec2 point = Vec2::Zero();
+  Vec2 tangent = Vec2::UnitX();
+};
+
+// the boundary point beside q, searching the chain from segment `index` on (advanced in place)
+SideHit find_side(const Path& chain, const Vec2& q, const Vec2& walk_dir, size_t& index,
+                  const PlannerParams& params) {
+  SideHit hit;
+  if (chain.points.empty()) return hit;
+
+  // a single cone: beside q when q is level with it along the walk
+  if (chain.points.size() == 1) {
+    const double along = (q - chain.points.front()).dot(walk_dir);
+    hit.point = chain.points.front();
+    hit.tangent = walk_dir;
+    if (along < -params.step_m)
+      hit.kind = SideHit::Kind::kBefore;
+    else if (along > params.step_m)
+      hit.kind = SideHit::Kind::kAfter;
+    else if ((q - hit.point).norm() <= params.max_side_distance_m)
+      hit.kind = SideHit::Kind::kFound;
+    return hit;
+  }
+
+  // nearest point over a short window of segments, then whether q is off either end
+  const PathProjection proj = project_onto(chain, q, index, kWalkWindowSegments);
+  index = proj.segment;  // the window only looks ahead, so this never goes back
+  hit.point = proj.point;
+  hit.tangent = (chain.segment_end(proj.segment) - chain.points[proj.segment]).normalized();
+  const size_t last = chain.segment_count() - 1;
+  if (!chain.closed && proj.segment == 0 && proj.t <= 0.0 &&
+      (q - proj.point).dot(hit.tangent) < 0.0) {
+    hit.kind = SideHit::Kind::kBefore;
+  } else if (!chain.closed && proj.segment == last && proj.t >= 1.0 &&
+             (q - proj.point).dot(hit.tangent) > 0.0) {
+    hit.kind = SideHit::Kind::kAfter;
+  } else if (proj.distance_m <= params.max_side_distance_m) {
+    hit.kind = SideHit::Kind::kFound;
+  }
+  return hit;
+}
+
+// left normal of a unit vector
+Vec2 left_normal(const Vec2& t) {
+  return {-t.y(), t.x()};
+}
+
+}  // namespace
+
+Boundaries chain_boundaries(const std::vector<MapCone>& cones, const Pose2& from,
+                            const PlannerParams& params, double max_length_m, bool whole_circuit) {
+  Boundaries b;
+  std::vector<bool> excluded(cones.size(), false);
+  for (int round = 0; round < kMaxChainRounds; ++round) {
+    // both chains, left first; a cone goes into one chain at most
+    std::vector<bool> used = excluded;
+    std::vector<int> left_ids, right_ids;
+    b.left = chain_one(cones, ConeClass::kBlue, 1.0, from, params, max_length_m, whole_circuit,
+                       used, b.left_closed, left_ids);
+    b.right = chain_one(cones, ConeClass::kYellow, -1.0, from, params, max_length_m, whole_circuit,
+                        used, b.right_closed, right_ids);
+
+    // a cone lying on the other boundary (a wrong colour, a spurious cone) is dropped, and the
+    // chains are built again without it
+    bool conflict = false;
+    const Path left{b.left, b.left_closed}, right{b.right, b.right_closed};
+    auto flag = [&](const std::vector<int>& ids, const Path& other) {
+      if (other.points.size() < 2) return;
+      const size_t last = other.segment_count() - 1;
+      for (const int i : ids) {
+        const Vec2& p = cones[static_cast<size_t>(i)].position;
+        const PathProjection proj = project_onto(other, p, 0, other.segment_count());
+        const bool beside = other.closed || ((proj.segment > 0 || proj.t > 0.0) &&
+                                             (proj.segment < last || proj.t < 1.0));
+        if (proj.distance_m < params.min_boundary_gap_m ||
+            (beside && proj.distance_m > params.max_boundary_gap_m)) {
+          excluded[static_cast<size_t>(i)] = true;
+          conflict = true;
+        }
+      }
+    };
+    flag(left_ids, right);
+    flag(right_ids, left);
+    if (!conflict) break;
+  }
+  return b;
+}
+
+std::vector<Vec2> walk_centre_line(const Boundaries& boundaries, const Pose2& from,
+                                   const PlannerParams& params, double max_length_m,
+                                   bool whole_circuit) {
+  const Path left{boundaries.left, whole_circuit && boundaries.left.size() > 2};
+  const Path right{boundaries.right, whole_circuit && boundaries.right.size() > 2};
+  // a closed chain starts its search on the closing segment, which may span the start
+  size_t li = left.closed ? left.segment_count() - 1 : 0;
+  size_t ri = right.closed ? right.segment_count() - 1 : 0;
+
+  std::vector<Vec2> line{from.position()};
+  Vec2 dir = from.heading();
+  const double hw = params.assumed_half_width_m;
+  double walked = 0.0;
+  while (walked < max_length_m) {
+    // the two boundaries beside the next step
+    const Vec2& p = line.back();
+    const Vec2 q = p + params.step_m * dir;
+    const SideHit l = find_side(left, q, dir, li, params);
+    const SideHit r = find_side(right, q, dir, ri, params);
+    const bool has_l = l.kind == SideHit::Kind::kFound, has_r = r.kind == SideHit::Kind::kFound;
+    const double width = (l.point - r.point).norm();
+
+    // centre: midpoint of both, or the one side offset inwards, or straight on before the
+    // chains begin; nothing beside and nothing ahead ends the walk
+    Vec2 c;
+    if (has_l && has_r && width > hw && width < 2.0 * params.max_side_distance_m) {
+      c = 0.5 * (l.point + r.point);
+    } else if (has_l && (!has_r || (q - l.point).norm() <= (q - r.point).norm())) {
+      c = l.point - hw * left_normal(l.tangent);
+    } else if (has_r) {
+      c = r.point + hw * left_normal(r.tangent);
+    } else if ((l.kind == SideHit::Kind::kBefore || r.kind == SideHit::Kind::kBefore) &&
+               walked < kMaxWalkBeforeChainsM) {
+      c = q;
+    } else {
+      break;
+    }
+
+    // keep moving forward: a centre too little ahead keeps its lateral place but is moved on
+    const double ahead = (c - p).dot(dir);
+    if (ahead < kMinStepShare * params.step_m) c += (kMinStepShare * params.step_m - ahead) * dir;
+    const Vec2 next_dir = (c - p).normalized();
+
+    // a circuit stops when it comes back across the start line
+    if (whole_circuit && walked > kMinCircuitM) {
+      const Vec2 h = from.heading();
+      const Vec2 s = from.position();
+      if ((p - s).dot(h) < 0.0 && (c - s).dot(h) >= 0.0 && (c - s).norm() < 2.0 * hw + 2.0)
+        return line;
+    }
+    walked += (c - p).norm();
+    line.push_back(c);
+    dir = next_dir;
+  }
+  if (whole_circuit) return {};
+  return line;
+}
+
+Path plan_local_path(const std::vector<MapCone>& cones, const Pose2& pose,
+                     const PlannerParams& params, double horizon_m) {
+  // boundaries a little longer than the horizon, so that the walk has cones at its end
+  const Boundaries b = chain_boundaries(cones, pose, params, horizon_m + 5.0, false);
+  if (b.left.empty() && b.right.empty()) return {};
+  std::vector<Vec2> line = walk_centre_line(b, pose, params, horizon_m, false);
+  if (line.size() < 3) return {};
+  return {smooth(line, params.smooth_half_window, false), false};
+}
+
+std::optional<Path> plan_circuit(const std::vector<MapCone>& map, const Pose2& start,
+                                 const PlannerParams& params, double spacing_m) {
+  // both boundaries must close into loops
+  constexpr double kMaxCircuitM = 3000.0;
+  const Boundaries b = chain_boundaries(map, start, params, kMaxCircuitM, true);
+  if (!b.left_closed || !b.right_closed) return std::nullopt;
+
+  // walk once round, then resample and smooth as a loop
+  std::vector<Vec2> line = walk_centre_line(b, start, params, kMaxCircuitM, true);
+  if (line.size() < 20) return std::nullopt;
+  line = resample(line, spacing_m, true);
+  line = smooth(line, params.smooth_half_window, true);
+  return Path{resample(line, spacing_m, true), true};
+}
+
+}  // namespace conesim::control

@@ -1,0 +1,72 @@
+#pragma once
+// Path planning from cones: each boundary is chained cone to cone (blue left, yellow right)
+// from the car forward, and the centre line is walked between the two chains, offsetting the
+// one visible side by an assumed half width where the other is missing.
+
+#include <optional>
+#include <vector>
+
+#include "control/path.hpp"
+#include "core/autonomy_types.hpp"
+
+namespace conesim::control {
+
+/// Planner settings.
+struct PlannerParams {
+  /// Half track width assumed when only one boundary is known, metres.
+  double assumed_half_width_m = 1.6;
+  /// Longest link between consecutive cones of a chain: one missing cone on a 5 m spacing.
+  double max_link_m = 10.5;
+  /// Largest turn between consecutive links of a chain, radians.
+  double max_link_turn_rad = 1.3;
+  /// A link costs its length times (1 + turn_weight * turn^2): straight-on links win.
+  double turn_weight = 2.0;
+  /// Extra cost of an orange or unknown cone in a chain, metres (a coloured cone is preferred).
+  double off_class_penalty_m = 3.0;
+  /// A cone of one chain closer than this to the other boundary is taken for a wrong colour or
+  /// a spurious cone and dropped (tracks are 3 m wide or more; separate parts of a circuit keep
+  /// 2 m between their boundaries), metres.
+  double min_boundary_gap_m = 1.5;
+  /// A cone of one chain further than this from the other boundary, where that boundary runs
+  /// beside it, belongs to another part of the track and is dropped, metres.
+  double max_boundary_gap_m = 6.0;
+  /// Step of the centre-line walk, metres.
+  double step_m = 1.0;
+  /// A boundary further than this from the walk point is ignored there, metres.
+  double max_side_distance_m = 4.0;
+  /// Moving-average half window applied to the walked centre line, points.
+  int smooth_half_window = 1;
+};
+
+/// The two boundaries as ordered chains of cone positions (map frame).
+struct Boundaries {
+  std::vector<Vec2> left;
+  std::vector<Vec2> right;
+  /// True when a chain came back to its first cone (a whole circuit).
+  bool left_closed = false;
+  bool right_closed = false;
+};
+
+/// Chains the boundaries from the cones near `from` forward, each up to max_length_m long.
+/// With `whole_circuit` a chain runs until it returns to its first cone.
+Boundaries chain_boundaries(const std::vector<core::MapCone>& cones, const core::Pose2& from,
+                            const PlannerParams& params, double max_length_m, bool whole_circuit);
+
+/// Walks the centre line between the boundaries from `from`, one step at a time, up to
+/// max_length_m. With `whole_circuit` the chains are closed loops and the walk stops when it
+/// comes back across the start; the result then excludes the start point's duplicate.
+std::vector<Vec2> walk_centre_line(const Boundaries& boundaries, const core::Pose2& from,
+                                   const PlannerParams& params, double max_length_m,
+                                   bool whole_circuit);
+
+/// The local path ahead of the car from the cones near it: chained, walked and smoothed. The
+/// first point is the car's position. Empty when no boundary is in sight.
+Path plan_local_path(const std::vector<core::MapCone>& cones, const core::Pose2& pose,
+                     const PlannerParams& params, double horizon_m);
+
+/// The closed centre line of a whole circuit from its map, starting at the start pose and
+/// resampled every spacing_m; nullopt when the boundaries do not close into one loop.
+std::optional<Path> plan_circuit(const std::vector<core::MapCone>& map, const core::Pose2& start,
+                                 const PlannerParams& params, double spacing_m = 1.0);
+
+}  // namespace conesim::control

@@ -1,0 +1,94 @@
+#include "control/speed_profile.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace conesim::control {
+
+namespace {
+
+// curvature below this counts as straight (avoids dividing by zero)
+constexpr double kMinCurvature = 1e-4;
+// the longitudinal share never drops below this fraction of the limit, so that a car at the
+// lateral limit can still brake and speed up a little
+constexpr double kMinLongitudinalShare = 0.2;
+
+// longitudinal acceleration left at speed v on curvature k (friction ellipse)
+double longitudinal_room(double limit, double v, double k, double a_lat_max) {
+  const double used = std::min(1.0, v * v * std::abs(k) / a_lat_max);
+  return limit * std::max(kMinLongitudinalShare, std::sqrt(1.0 - used * used));
+}
+
+}  // namespace
+
+double SpeedProfile::speed_at(double s, double lap_m) const {
+  if (s_m.empty()) return 0.0;
+  if (lap_m > 0.0) {
+    s = std::fmod(s, lap_m);
+    if (s < 0.0) s += lap_m;
+  }
+  // the point after s, interpolated with the one before (the lap end wraps to the start)
+  const auto it = std::upper_bound(s_m.begin(), s_m.end(), s);
+  if (it == s_m.begin()) return speed_mps.front();
+  const size_t i1 = static_cast<size_t>(it - s_m.begin());
+  const size_t i0 = i1 - 1;
+  if (i1 == s_m.size()) {
+    if (lap_m <= 0.0) return speed_mps.back();
+    const double span = lap_m - s_m[i0];
+    const double f = span > 0.0 ? (s - s_m[i0]) / span : 0.0;
+    return speed_mps[i0] + f * (speed_mps.front() - speed_mps[i0]);
+  }
+  const double span = s_m[i1] - s_m[i0];
+  const double f = span > 0.0 ? (s - s_m[i0]) / span : 0.0;
+  return speed_mps[i0] + f * (speed_mps[i1] - speed_mps[i0]);
+}
+
+SpeedProfile plan_speed(const Path& path, const SpeedLimits& limits,
+                        std::optional<double> start_speed_mps,
+                        std::optional<double> end_speed_mps) {
+  SpeedProfile profile;
+  const size_t n = path.points.size();
+  if (n == 0) return profile;
+  std::vector<double> s = path.arc_lengths();
+  const double lap = path.closed ? s.back() : 0.0;
+  s.resize(n);
+  profile.s_m = s;
+
+  // lateral limit from the curvature
+  const std::vector<double> k = curvatures(path.points, path.closed);
+  std::vector<double> v(n);
+  for (size_t i = 0; i < n; ++i)
+    v[i] = std::min(limits.max_speed_mps, std::sqrt(limits.max_lateral_accel_mps2 /
+                                                    std::max(kMinCurvature, std::abs(k[i]))));
+  if (!path.closed && start_speed_mps) v[0] = std::min(v[0], std::max(0.0, *start_speed_mps));
+  if (!path.closed && end_speed_mps) v[n - 1] = std::min(v[n - 1], std::max(0.0, *end_speed_mps));
+
+  // forward (acceleration) and backward (braking) passes; a closed path goes round twice so
+  // that the limits carry over the start
+  const size_t rounds = path.closed ? 2 : 1;
+  const size_t steps = path.closed ? n : n - 1;
+  auto ds = [&](size_t i) {  // length of the segment from point i to the next one
+    const size_t j = (i + 1) % n;
+    return j == 0 ? lap - s[i] : s[j] - s[i];
+  };
+  for (size_t r = 0; r < rounds; ++r) {
+    for (size_t m = 0; m < steps; ++m) {
+      const size_t i = m % n, j = (m + 1) % n;
+      const double a =
+          longitudinal_room(limits.max_accel_mps2, v[i], k[i], limits.max_lateral_accel_mps2);
+      v[j] = std::min(v[j], std::sqrt(v[i] * v[i] + 2.0 * a * ds(i)));
+    }
+  }
+  for (size_t r = 0; r < rounds; ++r) {
+    for (size_t m = steps; m-- > 0;) {
+      const size_t i = m % n, j = (m + 1) % n;
+      const double a =
+          longitudinal_room(limits.max_decel_mps2, v[j], k[j], limits.max_lateral_accel_mps2);
+      v[i] = std::min(v[i], std::sqrt(v[j] * v[j] + 2.0 * a * ds(i)));
+    }
+  }
+  profile.speed_mps = std::move(v);
+  return profile;
+}
+
+}  // namespace conesim::control

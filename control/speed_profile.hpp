@@ -1,0 +1,42 @@
+#pragma once
+// Speed along a path from its curvature: the lateral limit caps the speed at each point, a
+// forward pass limits acceleration and a backward pass plans braking before tight turns.
+
+#include <optional>
+#include <vector>
+
+#include "control/path.hpp"
+
+namespace conesim::control {
+
+/// Limits the profile plans for.
+struct SpeedLimits {
+  /// Speed cap, m/s.
+  double max_speed_mps = 10.0;
+  /// Lateral acceleration allowed in turns, m/s^2.
+  double max_lateral_accel_mps2 = 9.0;
+  /// Longitudinal acceleration and deceleration allowed on a straight, m/s^2.
+  double max_accel_mps2 = 6.0;
+  double max_decel_mps2 = 8.0;
+};
+
+/// The planned speed at each point of a path.
+struct SpeedProfile {
+  /// Arc length of each point (closed paths: without the lap entry), metres.
+  std::vector<double> s_m;
+  /// Planned speed at each point, m/s.
+  std::vector<double> speed_mps;
+
+  /// The planned speed at arc length s, linear between points (wrapping on a closed path).
+  double speed_at(double s, double lap_m = 0.0) const;
+};
+
+/// Plans the speed along a path. Open paths start at start_speed_mps (when given, it is only
+/// an upper bound for the forward pass) and end at most at end_speed_mps (when given); closed
+/// paths are periodic. Longitudinal acceleration shares the tyre with the lateral one (friction
+/// ellipse), so the car brakes before a turn rather than in it.
+SpeedProfile plan_speed(const Path& path, const SpeedLimits& limits,
+                        std::optional<double> start_speed_mps = std::nullopt,
+                        std::optional<double> end_speed_mps = std::nullopt);
+
+}  // namespace conesim::control

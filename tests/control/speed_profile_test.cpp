@@ -1,0 +1,100 @@
+#include "control/speed_profile.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+namespace conesim::control {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// straight of length a, a left hairpin (180 degrees) of radius r, straight of length b;
+// points every 0.5 m. Returns the path and the arc length where the hairpin begins.
+Path straight_hairpin_straight(double a, double r, double b, double* hairpin_s) {
+  constexpr double kStepM = 0.5;
+  Path path;
+  for (double x = 0.0; x < a; x += kStepM) path.points.push_back({x, 0.0});
+  *hairpin_s = a;
+  const int n = static_cast<int>(std::ceil(kPi * r / kStepM));
+  for (int i = 0; i < n; ++i) {
+    const double phi = -0.5 * kPi + kPi * i / n;
+    path.points.push_back(Vec2(a, r) + r * Vec2(std::cos(phi), std::sin(phi)));
+  }
+  for (double x = a; x > a - b; x -= kStepM) path.points.push_back({x, 2.0 * r});
+  return path;
+}
+
+TEST(SpeedProfile, RespectsTheLateralLimitOnAKnownCurvature) {
+  // a closed circle of radius 10 m: v = sqrt(a_lat r) everywhere, below the cap
+  constexpr double kRadiusM = 10.0;
+  Path path;
+  path.closed = true;
+  for (int i = 0; i < 126; ++i) {
+    const double phi = 2.0 * kPi * i / 126;
+    path.points.push_back(kRadiusM * Vec2(std::cos(phi), std::sin(phi)));
+  }
+  SpeedLimits limits;
+  limits.max_speed_mps = 30.0;
+  const SpeedProfile profile = plan_speed(path, limits);
+  ASSERT_EQ(profile.speed_mps.size(), path.points.size());
+  for (double v : profile.speed_mps) {
+    // the chords' circle is the circle: the lateral acceleration is the limit within 0.5 %
+    EXPECT_LE(v * v / kRadiusM, limits.max_lateral_accel_mps2 * 1.005);
+    EXPECT_GE(v * v / kRadiusM, limits.max_lateral_accel_mps2 * 0.995);
+  }
+}
+
+TEST(SpeedProfile, DeceleratesBeforeAHairpinWithinTheLimits) {
+  double hairpin_s = 0.0;
+  constexpr double kHairpinRadiusM = 5.0;
+  const Path path = straight_hairpin_straight(80.0, kHairpinRadiusM, 40.0, &hairpin_s);
+  SpeedLimits limits;
+  limits.max_speed_mps = 16.0;
+  const SpeedProfile profile = plan_speed(path, limits, 0.0, std::nullopt);
+  const std::vector<double>& s = profile.s_m;
+  const std::vector<double>& v = profile.speed_mps;
+  const double v_hairpin = std::sqrt(limits.max_lateral_accel_mps2 * kHairpinRadiusM);
+
+  // the longitudinal limits hold between every two points
+  for (size_t i = 0; i + 1 < v.size(); ++i) {
+    const double a = (v[i + 1] * v[i + 1] - v[i] * v[i]) / (2.0 * (s[i + 1] - s[i]));
+    EXPECT_LE(a, limits.max_accel_mps2 + 1e-9) << "at s " << s[i];
+    EXPECT_GE(a, -limits.max_decel_mps2 - 1e-9) << "at s " << s[i];
+  }
+
+  // inside the hairpin the lateral limit holds (the curvature stencil blurs its ends by 1 m)
+  for (size_t i = 0; i < v.size(); ++i)
+    if (s[i] > hairpin_s + 1.0 && s[i] < hairpin_s + kPi * kHairpinRadiusM - 1.0) {
+      EXPECT_LE(v[i], v_hairpin * 1.01) << "at s " << s[i];
+    }
+
+  // braking starts before the hairpin: slow just before it, at the cap well before it
+  const double braking_m = (limits.max_speed_mps * limits.max_speed_mps - v_hairpin * v_hairpin) /
+                           (2.0 * limits.max_decel_mps2);
+  // (1 m before it: braking from the hairpin speed over that metre and the stencil's 1 m blur)
+  EXPECT_LT(profile.speed_at(hairpin_s - 1.0),
+            std::sqrt(v_hairpin * v_hairpin + 2.0 * limits.max_decel_mps2 * 2.0));
+  EXPECT_LT(profile.speed_at(hairpin_s - 0.5 * braking_m), limits.max_speed_mps - 1.0);
+  EXPECT_NEAR(profile.speed_at(hairpin_s - braking_m - 10.0), limits.max_speed_mps, 1e-9);
+  // starts from rest
+  EXPECT_DOUBLE_EQ(v.front(), 0.0);
+}
+
+TEST(SpeedProfile, OpenPathEndsAtTheEndSpeed) {
+  Path path;
+  for (int i = 0; i <= 100; ++i) path.points.push_back({0.5 * i, 0.0});
+  SpeedLimits limits;
+  const SpeedProfile profile = plan_speed(path, limits, 10.0, 0.0);
+  EXPECT_DOUBLE_EQ(profile.speed_mps.back(), 0.0);
+  // braking to rest from the cap takes v^2 / 2 a: the profile is at the cap before that
+  const double braking_m =
+      limits.max_speed_mps * limits.max_speed_mps / (2.0 * limits.max_decel_mps2);
+  EXPECT_NEAR(profile.speed_at(50.0 - braking_m - 0.5), limits.max_speed_mps, 1e-9);
+  EXPECT_NEAR(profile.speed_at(50.0 - 0.5 * braking_m),
+              std::sqrt(2.0 * limits.max_decel_mps2 * 0.5 * braking_m), 0.05);
+}
+
+}  // namespace
+}  // namespace conesim::control
