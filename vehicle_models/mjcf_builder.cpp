@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <sstream>
 
+#include "vehicle_models/cone_meshes.hpp"
+
 namespace conesim::vehicle_models {
 
 namespace {
@@ -66,7 +68,8 @@ std::string build_mjcf(const VehicleParams& p, const MjcfOptions& o) {
        "specular=\"0\" shininess=\"0\" reflectance=\"0\"/>\n"
     << "    <material name=\"body\" rgba=\"0.75 0.08 0.08 1\" specular=\"0.2\"/>\n"
     << "    <material name=\"tyre\" rgba=\"0.08 0.08 0.08 1\" specular=\"0\"/>\n"
-    << "  </asset>\n"
+    // cone meshes and textures for the camera: assets only, no geom uses them (not physics)
+    << cone_assets() << "  </asset>\n"
     << "  <worldbody>\n"
     << "    <geom name=\"ground\" type=\"plane\" size=\"0 0 1\" material=\"asphalt\"/>\n"
     << "    <body name=\"" << MjcfNames::kChassis << "\" pos=\"0 0 " << r << "\">\n"

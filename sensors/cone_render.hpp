@@ -1,0 +1,68 @@
+#pragma once
+// Draws the track's cones into a MuJoCo abstract scene: each cone is one textured mesh geom
+// (vehicle_models/cone_meshes.hpp) painted in its FSG colours. Cones are not in the physics
+// model (ARCHITECTURE decision 1), so they are appended after mjv_updateScene, every frame.
+
+#include <mujoco/mujoco.h>
+
+#include <Eigen/Core>
+#include <array>
+#include <functional>
+#include <vector>
+
+#include "core/cone.hpp"
+#include "tracks/track.hpp"
+
+namespace conesim::sensors {
+
+/// True for a cone that has been knocked over and must not be drawn.
+using IsKnocked = std::function<bool(int cone_id)>;
+
+/// A conservative view volume (a pyramid with its apex at the eye) used to skip cones that no
+/// camera of the rig can see.
+struct ViewVolume {
+  /// Eye position in the world, metres.
+  Eigen::Vector3d eye = Eigen::Vector3d::Zero();
+  /// Columns: the optical x (right), y (down) and z (forward) axes in the world.
+  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
+  /// Tangents of the half field of view, horizontal and vertical.
+  double tan_half_x = 1.0;
+  double tan_half_y = 1.0;
+  /// Nothing beyond this depth is drawn, metres.
+  double far_m = 100.0;
+
+  /// True unless a sphere at `centre` with `radius` lies wholly outside the volume.
+  bool may_see(const Eigen::Vector3d& centre, double radius) const;
+};
+
+/// Appends cones to a scene. Built once per model and track; append() runs every frame.
+class ConeSceneWriter {
+ public:
+  /// Finds the cone meshes and textures in the model and recovers the frame MuJoCo stored each
+  /// mesh in (the compiler moves a mesh to its inertial frame). Throws std::runtime_error when
+  /// the model lacks the assets of vehicle_models::cone_assets().
+  ConeSceneWriter(const mjModel* model, const std::vector<tracks::Cone>& cones);
+
+  /// Number of scene geoms that all cones together need (one per cone).
+  int geom_count() const { return static_cast<int>(cones_.size()); }
+
+  /// Appends every cone that is not knocked over and that the view volume may contain. Returns
+  /// the number of cones that did not fit in the scene (zero when maxgeom is large enough).
+  int append(mjvScene* scene, const IsKnocked& is_knocked, const ViewVolume& view) const;
+
+ private:
+  // how a cone class is drawn: its mesh (placed in the cone frame), texture and bounding sphere
+  struct ConeModel {
+    int mesh_id = -1;
+    int texture_id = -1;
+    Eigen::Vector3d mesh_position = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d mesh_rotation = Eigen::Matrix3d::Identity();
+    double centre_height_m = 0.0;
+    double bounding_radius_m = 0.0;
+  };
+
+  std::vector<tracks::Cone> cones_;
+  std::array<ConeModel, 5> models_;
+};
+
+}  // namespace conesim::sensors

@@ -1,0 +1,23 @@
+#pragma once
+// A minimal PNG encoder (8-bit RGB, zlib deflate) for dumping camera images without OpenCV.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/measurements.hpp"
+
+namespace conesim::sensors {
+
+/// The image encoded as a PNG file (8-bit RGB, no filtering, zlib compression).
+std::vector<uint8_t> encode_png(const core::RgbImage& image);
+
+/// Writes the image as a PNG file; returns an empty string on success, else what went wrong.
+std::string write_png(const std::string& path, const core::RgbImage& image);
+
+/// A grey image of a depth map for viewing: near is white, max_depth_m and beyond (and the sky)
+/// black.
+core::RgbImage depth_to_image(const std::vector<float>& depth_m, int width_px, int height_px,
+                              double max_depth_m);
+
+}  // namespace conesim::sensors

@@ -1,0 +1,114 @@
+#pragma once
+// A rectified stereo camera rendered by MuJoCo under OSMesa: the car's own world (the car and an
+// asphalt ground) plus the track's cones appended to the scene each frame, under a painted sky.
+// Intrinsics are exact: the GL frustum is set from them, so a point projects through the
+// published pinhole model to the pixel where it is drawn.
+
+#include <mujoco/mujoco.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/measurements.hpp"
+#include "core/time.hpp"
+#include "sensors/cone_render.hpp"
+#include "sensors/osmesa_context.hpp"
+#include "tracks/track.hpp"
+
+namespace conesim::sensors {
+
+/// Configuration of the stereo rig. Defaults: a main-hoop pair looking ahead, slightly down.
+struct StereoCameraConfig {
+  /// Image size, pixels (at most the model's offscreen buffer, 1280 x 960 by default).
+  int width_px = 640;
+  int height_px = 480;
+  /// Horizontal field of view, degrees; the vertical one follows from square pixels.
+  double horizontal_fov_deg = 70.0;
+  /// Distance between the two optical centres, metres.
+  double baseline_m = 0.12;
+  /// Midpoint between the optical centres in the vehicle frame (rear axle centre on the ground,
+  /// x forward, y left, z up), metres.
+  double mount_x_m = 0.60;
+  double mount_y_m = 0.0;
+  double mount_z_m = 1.05;
+  /// Pitch of both optical axes below the horizontal, degrees.
+  double pitch_down_deg = 5.0;
+  /// Near clipping distance along the optical axis, metres.
+  double near_m = 0.1;
+  /// Far clipping distance along the optical axis, metres: nothing beyond is drawn, and pixels
+  /// that show nothing (the sky) read as infinite depth.
+  double far_m = 100.0;
+
+  /// Empty when the configuration is usable, otherwise a message that starts with the bad key.
+  std::string validate() const;
+};
+
+/// Pinhole intrinsics of a camera with this configuration (square pixels, principal point in
+/// the image centre; pixel centres at integer coordinates, as in OpenCV).
+core::CameraIntrinsics stereo_intrinsics(const StereoCameraConfig& config);
+
+/// Left (left = true) or right camera pose in the vehicle frame, optical axes (x right, y down,
+/// z forward).
+core::Pose3 stereo_camera_in_vehicle(const StereoCameraConfig& config, bool left);
+
+/// Renders stereo frames of one car's world. Holds its own OSMesa context, MuJoCo render
+/// context, abstract scene, scratch mjData and a copy of the track's cones; the model must
+/// outlive it. Not thread safe: render from one thread at a time.
+class StereoCamera {
+ public:
+  /// Sets up rendering of `model` (built by vehicle_models::build_mjcf, which adds the cone
+  /// meshes) with the cones of `track`. Throws std::invalid_argument for a bad configuration or
+  /// an image larger than the model's offscreen buffer, std::runtime_error when GL fails.
+  StereoCamera(const StereoCameraConfig& config, const mjModel* model, const tracks::Track& track);
+  ~StereoCamera();
+  StereoCamera(const StereoCamera&) = delete;
+  StereoCamera& operator=(const StereoCamera&) = delete;
+
+  /// Renders the left and right images (and the left depth when with_depth) as seen with the
+  /// car in state `data` (only qpos is read) and the vehicle frame at `vehicle_in_track`; cones
+  /// for which is_knocked returns true are not drawn (an empty is_knocked draws all). Buffers of
+  /// `frame` are reused; `labels` receives the true camera poses in the track frame.
+  void render(const mjData* data, const core::Pose3& vehicle_in_track, core::TimeUs stamp,
+              const IsKnocked& is_knocked, bool with_depth, core::StereoFrame& frame,
+              core::StereoLabels& labels);
+
+  /// The configuration in use.
+  const StereoCameraConfig& config() const { return config_; }
+  /// Intrinsics of both cameras (published with every frame too).
+  const core::CameraIntrinsics& intrinsics() const { return intrinsics_; }
+  /// Cone geoms that did not fit in the scene over the camera's life (zero unless a bug).
+  long dropped_geoms() const { return dropped_geoms_; }
+
+ private:
+  // replaces MuJoCo's infinite ground plane by a plain square of asphalt around the rig
+  void simplify_ground(const Eigen::Vector3d& centre);
+  // renders the scene from one eye into an RGB image, and the depth buffer if depth_m is given
+  void render_eye(const core::Pose3& eye_in_track, core::RgbImage& image,
+                  std::vector<float>* depth_m);
+  // the rig's view volume, for skipping cones outside both images
+  ViewVolume rig_view(const core::Pose3& left_in_track) const;
+
+  StereoCameraConfig config_;
+  core::CameraIntrinsics intrinsics_;
+  core::Pose3 left_in_vehicle_;
+  core::Pose3 right_in_vehicle_;
+  float frustum_half_height_ = 0.f;
+
+  const mjModel* model_ = nullptr;
+  mjData* scratch_ = nullptr;
+  std::unique_ptr<OsMesaContext> gl_;
+  std::unique_ptr<ConeSceneWriter> cones_;
+  mjvScene scene_;
+  mjrContext context_;
+  mjvOption option_;
+  mjvCamera free_camera_;
+  mjvPerturb perturb_;
+  std::vector<unsigned char> rgba_scratch_;
+  // 1 / length of each pixel's ray (x, y, 1) in the optical frame, rows top to bottom
+  std::vector<float> inverse_ray_length_;
+  std::vector<float> depth_scratch_;
+  long dropped_geoms_ = 0;
+};
+
+}  // namespace conesim::sensors

@@ -1,0 +1,454 @@
+// Tests that prove the LiDAR data are right: every point lies on what its label says it hit,
+// ranges match geometry, the sweep moves with the car, stripes show in the intensity.
+
+#include "sensors/lidar.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <utility>
+#include <vector>
+
+#include "sensors/cone_mesh.hpp"
+#include "sensors/lidar_config.hpp"
+#include "sensors/pose_history.hpp"
+
+namespace conesim::sensors {
+namespace {
+
+using core::ConeClass;
+using core::Pose3;
+using core::TimeUs;
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+// a pose on the ground plane
+Pose3 planar_pose(double x, double y, double yaw) {
+  Pose3 p;
+  p.position = {x, y, 0.0};
+  p.orientation = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ());
+  return p;
+}
+
+// a track made of the given cones, ids from 1
+tracks::Track make_track(const std::vector<std::pair<core::Vec2, ConeClass>>& cones) {
+  tracks::Track track;
+  track.name = "test";
+  int id = 1;
+  for (const auto& [position, cls] : cones) track.cones.push_back({id++, cls, position, {}});
+  return track;
+}
+
+// vehicle poses every physics step (1 ms) moving along the heading at a constant speed
+PoseHistory drive(const Pose3& start, double speed_mps, TimeUs from, TimeUs to) {
+  PoseHistory history(10 * core::kUsPerSecond);
+  const Eigen::Vector3d heading = start.orientation * Eigen::Vector3d::UnitX();
+  for (TimeUs t = from; t <= to; t += 1000) {
+    Pose3 p = start;
+    p.position += heading * speed_mps * core::to_seconds(t - from);
+    history.push(t, p);
+  }
+  return history;
+}
+
+// a configuration without noise
+LidarConfig noiseless(LidarConfig config = {}) {
+  config.range_noise_sigma_m = 0.0;
+  config.intensity_noise_sigma = 0.0;
+  config.dropout_probability = 0.0;
+  return config;
+}
+
+// a point of a scan in the track frame, through the pose its column fired from
+Eigen::Vector3d in_track(const Lidar& lidar, const PoseHistory& poses,
+                         const core::PointCloud& cloud, const core::LidarPoint& p) {
+  const TimeUs t = cloud.stamp + core::from_seconds(p.time_offset_s);
+  return lidar.sensor_pose(poses.at(t)).transform(Eigen::Vector3d(p.x, p.y, p.z));
+}
+
+double range_of(const core::LidarPoint& p) {
+  return std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z);
+}
+
+// cones all around the car at 3-12 m, every class
+tracks::Track ring_of_cones() {
+  std::vector<std::pair<core::Vec2, ConeClass>> cones;
+  const ConeClass classes[] = {ConeClass::kBlue, ConeClass::kYellow, ConeClass::kOrangeSmall,
+                               ConeClass::kOrangeBig};
+  for (int i = 0; i < 24; ++i) {
+    const double a = 2.0 * std::numbers::pi * i / 24.0;
+    const double r = 3.0 + 9.0 * (i % 5) / 4.0;
+    cones.push_back({core::Vec2(2.1 + r * std::cos(a), r * std::sin(a)), classes[i % 4]});
+  }
+  return make_track(cones);
+}
+
+// ---------------------------------------------------------------------------------------------
+// configuration
+
+TEST(LidarConfig, DefaultsAndPresetsAreValid) {
+  EXPECT_EQ(LidarConfig{}.validate(), "");
+  for (const std::string& name : lidar_preset_names()) {
+    const auto config = lidar_preset(name);
+    ASSERT_TRUE(config.has_value()) << name;
+    EXPECT_EQ(config->validate(), "") << name;
+  }
+  EXPECT_EQ(lidar_preset("vlp16")->elevations_deg.size(), 16u);
+  EXPECT_EQ(lidar_preset("vlp32c")->elevations_deg.size(), 32u);
+  EXPECT_EQ(lidar_preset("os1-64")->elevations_deg.size(), 64u);
+  EXPECT_FALSE(lidar_preset("hdl-64").has_value());
+  EXPECT_NEAR(lidar_mount_preset("front_wing")->position.z(), 0.18, 1e-12);
+  EXPECT_NEAR(lidar_mount_preset("main_hoop")->position.z(), 1.0, 1e-12);
+  EXPECT_FALSE(lidar_mount_preset("roof").has_value());
+}
+
+TEST(LidarConfig, ValidateNamesTheBadKey) {
+  LidarConfig c;
+  c.max_range_m = 0.1;
+  EXPECT_EQ(c.validate().rfind("max_range_m:", 0), 0u) << c.validate();
+  c = {};
+  c.reflectivity.white = 1.5;
+  EXPECT_EQ(c.validate().rfind("reflectivity.white:", 0), 0u) << c.validate();
+  c = {};
+  c.dropout_probability = -0.1;
+  EXPECT_EQ(c.validate().rfind("dropout_probability:", 0), 0u) << c.validate();
+  c = {};
+  c.elevations_deg.clear();
+  EXPECT_EQ(c.validate().rfind("elevations_deg:", 0), 0u) << c.validate();
+  EXPECT_THROW(Lidar(c, make_track({})), std::invalid_argument);
+}
+
+// ---------------------------------------------------------------------------------------------
+// pose history
+
+TEST(PoseHistory, InterpolatesBetweenStepsAndClampsOutside) {
+  PoseHistory h;
+  h.push(0, planar_pose(0.0, 0.0, 0.0));
+  h.push(1000, planar_pose(1.0, 0.0, 0.2));
+  EXPECT_NEAR(h.at(250).position.x(), 0.25, 1e-12);
+  EXPECT_NEAR(h.at(500).planar().yaw, 0.1, 1e-12);
+  EXPECT_NEAR(h.at(-5).position.x(), 0.0, 1e-12);
+  EXPECT_NEAR(h.at(5000).position.x(), 1.0, 1e-12);
+  EXPECT_TRUE(h.covers(0, 1000));
+  EXPECT_FALSE(h.covers(0, 1001));
+  EXPECT_THROW(h.push(999, Pose3{}), std::invalid_argument);
+}
+
+TEST(PoseHistory, ForgetsSamplesOlderThanTheWindow) {
+  PoseHistory h(10'000);
+  for (TimeUs t = 0; t <= 100'000; t += 1000) h.push(t, planar_pose(1e-5 * t, 0.0, 0.0));
+  EXPECT_LE(h.oldest(), 90'000);
+  EXPECT_GE(h.oldest(), 89'000);
+  EXPECT_NEAR(h.at(95'500).position.x(), 0.955, 1e-12);
+}
+
+// ---------------------------------------------------------------------------------------------
+// geometry of the returns
+
+// A level, stationary car sees the ground at range h / sin(-elevation) on every downward ring,
+// in every column, and nothing on the others (empty track, zero noise).
+TEST(Lidar, LevelCarSeesTheGroundAtTheAnalyticRangeOnEveryRing) {
+  for (const std::string& model : lidar_preset_names()) {
+    for (const char* mount : {"front_wing", "main_hoop"}) {
+      LidarConfig config = noiseless(*lidar_preset(model));
+      config.mount = *lidar_mount_preset(mount);
+      const Lidar lidar(config, make_track({}));
+      const PoseHistory poses = drive(planar_pose(3.0, -2.0, 0.7), 0.0, 0, 200'000);
+      core::Rng rng(1);
+      const LidarScan scan = lidar.sweep(0, poses, rng);
+
+      // expected range per ring, sorted by elevation as rings are
+      std::vector<double> elevations = config.elevations_deg;
+      std::sort(elevations.begin(), elevations.end());
+      const double h = config.mount.position.z();
+      std::vector<int> count(elevations.size(), 0);
+      for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+        const core::LidarPoint& p = scan.cloud.points[i];
+        const double e = elevations[p.ring] * kDeg;
+        ASSERT_LT(e, 0.0) << model << " " << mount << ": a return on an upward ring";
+        const double expected = h / std::sin(-e);
+        ASSERT_NEAR(range_of(p), expected, 1e-5 * expected + 1e-5) << model << " ring " << p.ring;
+        EXPECT_EQ(scan.labels.cone_id[i], core::PointCloudLabels::kGroundLabel);
+        ++count[p.ring];
+      }
+      for (size_t r = 0; r < elevations.size(); ++r) {
+        const bool reachable = elevations[r] < 0.0 &&
+                               h / std::sin(-elevations[r] * kDeg) <= config.max_range_m &&
+                               h / std::sin(-elevations[r] * kDeg) >= config.min_range_m;
+        EXPECT_EQ(count[r], reachable ? config.columns : 0)
+            << model << " " << mount << " ring " << r;
+      }
+      EXPECT_EQ(scan.stats.rays, static_cast<int64_t>(config.columns) * elevations.size());
+    }
+  }
+}
+
+// Every point labelled with a cone lies on that cone's surface within the range noise (five
+// sigma plus the facets of the mesh), every ground point on the ground plane.
+TEST(Lidar, LabelledPointsLieOnWhatTheyHit) {
+  const tracks::Track track = ring_of_cones();
+  for (double sigma : {0.0, 0.015}) {
+    LidarConfig config;
+    config.range_noise_sigma_m = sigma;
+    const Lidar lidar(config, track);
+    const PoseHistory poses = drive(planar_pose(0.0, 0.0, 0.0), 0.0, 0, 200'000);
+    core::Rng rng(7);
+    const LidarScan scan = lidar.sweep(0, poses, rng);
+
+    const double facets = facet_deviation_m(cone_shape(ConeClass::kOrangeBig), 24);
+    const double tolerance = 5.0 * sigma + facets + 1e-4;
+    int cone_points = 0;
+    std::vector<int> per_cone(track.cones.size() + 1, 0);
+    for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+      const Eigen::Vector3d p = in_track(lidar, poses, scan.cloud, scan.cloud.points[i]);
+      const int id = scan.labels.cone_id[i];
+      if (id == core::PointCloudLabels::kGroundLabel) {
+        ASSERT_NEAR(p.z(), 0.0, 5.0 * sigma + 1e-4) << "ground point " << i;
+        continue;
+      }
+      const tracks::Cone& cone = track.cone(id);
+      const Eigen::Vector3d local = p - Eigen::Vector3d(cone.position.x(), cone.position.y(), 0.0);
+      ASSERT_LT(cone_shape(cone.cls).surface_distance(local), tolerance)
+          << "cone " << id << " point " << local.transpose();
+      ++cone_points;
+      ++per_cone[id];
+    }
+    // every cone within 10 m is seen (at 12 m a small cone falls between the beams of a
+    // front-wing VLP-16: the -1 degree beam meets the ground first, the +1 degree one passes over)
+    EXPECT_GT(cone_points, 300);
+    for (const tracks::Cone& cone : track.cones) {
+      if ((cone.position - core::Vec2(2.1, 0.0)).norm() < 10.0) {
+        EXPECT_GT(per_cone[cone.id], 0) << cone.id;
+      }
+    }
+  }
+}
+
+// Returns beyond the maximum range are missed.
+TEST(Lidar, NothingBeyondTheMaximumRange) {
+  LidarConfig config = noiseless();
+  config.max_range_m = 3.0;
+  const tracks::Track track = make_track({{core::Vec2(2.1 + 5.0, 0.0), ConeClass::kOrangeBig}});
+  const Lidar lidar(config, track);
+  const PoseHistory poses = drive(Pose3{}, 0.0, 0, 200'000);
+  core::Rng rng(3);
+  const LidarScan scan = lidar.sweep(0, poses, rng);
+  ASSERT_FALSE(scan.cloud.points.empty());
+  for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+    EXPECT_LE(range_of(scan.cloud.points[i]), 3.0 + 1e-5);
+    EXPECT_EQ(scan.labels.cone_id[i], core::PointCloudLabels::kGroundLabel);
+  }
+  // rings -1 and -3 reach the ground beyond 3 m: they are empty
+  for (const core::LidarPoint& p : scan.cloud.points) EXPECT_LT(p.ring, 6);
+}
+
+// ---------------------------------------------------------------------------------------------
+// time: the sweep follows the car
+
+// At 10 m/s the first and last columns fire from poses 1 m apart: a cone right behind the car
+// (where the sweep starts and ends) reads 1 m farther in the last column than in the first,
+// and every point still lies on its cone when taken through its own column's pose.
+TEST(Lidar, AtTenMetresPerSecondTheSweepSpansOneMetre) {
+  const double speed = 10.0;
+  tracks::Track track = ring_of_cones();
+  track.cones.push_back({100, ConeClass::kOrangeBig, core::Vec2(2.1 - 5.0, 0.0), {}});
+  const Lidar lidar(noiseless(), track);
+  const TimeUs start = 1'000'000;
+  const PoseHistory poses = drive(planar_pose(0.0, 0.0, 0.0), speed, 900'000, 1'200'000);
+  core::Rng rng(11);
+  const LidarScan scan = lidar.sweep(start, poses, rng);
+
+  // the firing poses of the first and last columns
+  const TimeUs last = lidar.sweep_end(start);
+  EXPECT_EQ(last - start, 99'944);  // column 1799 of 1800 in 100 ms
+  const double travelled =
+      (scan.labels.sensor_pose_end.position - scan.labels.sensor_pose_start.position).norm();
+  EXPECT_NEAR(travelled, speed * core::to_seconds(last - start), 1e-6);
+  EXPECT_NEAR(travelled, 1.0, 0.001);
+
+  // the cone behind: first column versus last column, in the sensor frame
+  double first_x = 0.0, last_x = 0.0;
+  int first_n = 0, last_n = 0;
+  for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+    if (scan.labels.cone_id[i] != 100) continue;
+    const core::LidarPoint& p = scan.cloud.points[i];
+    if (p.time_offset_s == 0.f) {
+      first_x += p.x;
+      ++first_n;
+    }
+    if (core::from_seconds(p.time_offset_s) == last - start) {
+      last_x += p.x;
+      ++last_n;
+    }
+  }
+  ASSERT_GT(first_n, 0);
+  ASSERT_GT(last_n, 0);
+  EXPECT_NEAR(first_x / first_n - last_x / last_n, travelled, 0.02);
+
+  // through each column's pose every point is on its cone; through the start pose it is not
+  const double tolerance = facet_deviation_m(cone_shape(ConeClass::kOrangeBig), 24) + 1e-4;
+  double worst_with_start_pose = 0.0;
+  for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+    const int id = scan.labels.cone_id[i];
+    if (id == core::PointCloudLabels::kGroundLabel) continue;
+    const tracks::Cone& cone = track.cone(id);
+    const Eigen::Vector3d base(cone.position.x(), cone.position.y(), 0.0);
+    const core::LidarPoint& q = scan.cloud.points[i];
+    const Eigen::Vector3d right = in_track(lidar, poses, scan.cloud, q) - base;
+    ASSERT_LT(cone_shape(cone.cls).surface_distance(right), tolerance) << "cone " << id;
+    const Eigen::Vector3d wrong =
+        scan.labels.sensor_pose_start.transform(Eigen::Vector3d(q.x, q.y, q.z)) - base;
+    worst_with_start_pose =
+        std::max(worst_with_start_pose, cone_shape(cone.cls).surface_distance(wrong));
+  }
+  EXPECT_GT(worst_with_start_pose, 0.5);
+}
+
+TEST(Lidar, RefusesASweepThePosesDoNotCover) {
+  const Lidar lidar(LidarConfig{}, make_track({}));
+  const PoseHistory poses = drive(Pose3{}, 0.0, 0, 50'000);
+  core::Rng rng(1);
+  EXPECT_THROW((void)lidar.sweep(0, poses, rng), std::invalid_argument);
+  EXPECT_THROW((void)lidar.sweep(0, PoseHistory{}, rng), std::invalid_argument);
+}
+
+// ---------------------------------------------------------------------------------------------
+// intensity
+
+// Blue cones read dark-light-dark along their height, yellow cones light-dark-light: the mean
+// intensity of the middle band differs from the outer bands' by far more than its noise.
+TEST(Lidar, BlueAndYellowConesShowOppositeStripes) {
+  std::vector<std::pair<core::Vec2, ConeClass>> cones;
+  for (int i = 0; i < 12; ++i) {
+    const double x = 2.1 + 2.0 + 0.45 * i;
+    cones.push_back({core::Vec2(x, 1.5 + 0.1 * i), ConeClass::kBlue});
+    cones.push_back({core::Vec2(x, -1.5 - 0.1 * i), ConeClass::kYellow});
+  }
+  const tracks::Track track = make_track(cones);
+  const Lidar lidar(LidarConfig{}, track);
+  const PoseHistory poses = drive(Pose3{}, 0.0, 0, 200'000);
+  core::Rng rng(5);
+  const LidarScan scan = lidar.sweep(0, poses, rng);
+
+  // intensity sums of the stripe and of the base colour, per class
+  struct Stat {
+    double sum = 0.0, sum_sq = 0.0;
+    int n = 0;
+    void add(double v) { sum += v, sum_sq += v * v, ++n; }
+    double mean() const { return sum / n; }
+    double std_error() const { return std::sqrt((sum_sq / n - mean() * mean()) / n); }
+  };
+  Stat blue_stripe, blue_base, yellow_stripe, yellow_base;
+  for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+    const int id = scan.labels.cone_id[i];
+    if (id == core::PointCloudLabels::kGroundLabel) continue;
+    const tracks::Cone& cone = track.cone(id);
+    const ConeShape shape = cone_shape(cone.cls);
+    const double z = in_track(lidar, poses, scan.cloud, scan.cloud.points[i]).z();
+    // skip points within 1 cm of a band boundary (the noise may move them across)
+    if (shape.material_at(z - 0.01) != shape.material_at(z + 0.01)) continue;
+    const bool stripe = shape.material_at(z) != shape.plate_material;
+    const double v = scan.cloud.points[i].intensity;
+    if (cone.cls == ConeClass::kBlue) (stripe ? blue_stripe : blue_base).add(v);
+    if (cone.cls == ConeClass::kYellow) (stripe ? yellow_stripe : yellow_base).add(v);
+  }
+  for (const Stat* s : {&blue_stripe, &blue_base, &yellow_stripe, &yellow_base})
+    ASSERT_GE(s->n, 20);
+  const double blue_margin = 5.0 * std::hypot(blue_stripe.std_error(), blue_base.std_error());
+  const double yellow_margin = 5.0 * std::hypot(yellow_stripe.std_error(), yellow_base.std_error());
+  EXPECT_GT(blue_stripe.mean(), blue_base.mean() + blue_margin)
+      << "blue: white stripe " << blue_stripe.mean() << " vs blue " << blue_base.mean();
+  EXPECT_LT(yellow_stripe.mean() + yellow_margin, yellow_base.mean())
+      << "yellow: black stripe " << yellow_stripe.mean() << " vs yellow " << yellow_base.mean();
+}
+
+// ---------------------------------------------------------------------------------------------
+// the scene changes, faults, determinism
+
+TEST(Lidar, AKnockedConeGetsNoPoints) {
+  const tracks::Track track = make_track({{core::Vec2(2.1 + 4.0, 0.0), ConeClass::kBlue},
+                                          {core::Vec2(2.1 + 4.0, 2.0), ConeClass::kYellow}});
+  Lidar lidar(LidarConfig{}, track);
+  const PoseHistory poses = drive(Pose3{}, 0.0, 0, 200'000);
+  auto points_of = [&](int id) {
+    core::Rng rng(2);
+    const LidarScan scan = lidar.sweep(0, poses, rng);
+    return std::count(scan.labels.cone_id.begin(), scan.labels.cone_id.end(), id);
+  };
+  EXPECT_GT(points_of(1), 10);
+  lidar.set_cone_present(1, false);
+  EXPECT_FALSE(lidar.cone_present(1));
+  EXPECT_EQ(points_of(1), 0);
+  EXPECT_GT(points_of(2), 10);
+  lidar.set_cone_present(1, true);
+  EXPECT_GT(points_of(1), 10);
+  EXPECT_THROW(lidar.set_cone_present(99, false), std::out_of_range);
+}
+
+TEST(Lidar, DropoutLosesTheConfiguredShareOfReturns) {
+  LidarConfig config;
+  config.dropout_probability = 0.1;
+  const Lidar lidar(config, ring_of_cones());
+  const PoseHistory poses = drive(Pose3{}, 0.0, 0, 200'000);
+  core::Rng rng(4);
+  const LidarScan scan = lidar.sweep(0, poses, rng);
+  const double n = static_cast<double>(scan.stats.hits);
+  const double sigma = std::sqrt(n * 0.1 * 0.9);
+  EXPECT_NEAR(static_cast<double>(scan.stats.dropped), 0.1 * n, 5.0 * sigma);
+  EXPECT_EQ(scan.stats.hits - scan.stats.dropped - scan.stats.out_of_range,
+            static_cast<int64_t>(scan.cloud.points.size()));
+}
+
+TEST(Lidar, SameSeedSameScan) {
+  LidarConfig config;
+  config.dropout_probability = 0.05;
+  const Lidar lidar(config, ring_of_cones());
+  const PoseHistory poses = drive(planar_pose(0.0, 0.0, 0.3), 5.0, 0, 200'000);
+  auto scan_with = [&](uint64_t seed) {
+    core::Rng rng(seed);
+    return lidar.sweep(10'000, poses, rng);
+  };
+  const LidarScan a = scan_with(42), b = scan_with(42), c = scan_with(43);
+  ASSERT_EQ(a.cloud.points.size(), b.cloud.points.size());
+  for (size_t i = 0; i < a.cloud.points.size(); ++i) {
+    const core::LidarPoint &p = a.cloud.points[i], &q = b.cloud.points[i];
+    ASSERT_TRUE(p.x == q.x && p.y == q.y && p.z == q.z && p.intensity == q.intensity &&
+                p.ring == q.ring && p.time_offset_s == q.time_offset_s)
+        << i;
+  }
+  EXPECT_EQ(a.labels.cone_id, b.labels.cone_id);
+  bool differs = a.cloud.points.size() != c.cloud.points.size();
+  for (size_t i = 0; !differs && i < a.cloud.points.size(); ++i)
+    differs = a.cloud.points[i].x != c.cloud.points[i].x;
+  EXPECT_TRUE(differs);
+}
+
+// ---------------------------------------------------------------------------------------------
+// cone geometry
+
+TEST(ConeMesh, ShapesHaveTheHandbookSizesAndStripes) {
+  const ConeShape small = cone_shape(ConeClass::kBlue);
+  EXPECT_DOUBLE_EQ(small.plate_width_m, 0.228);
+  EXPECT_DOUBLE_EQ(small.height_m, 0.325);
+  EXPECT_EQ(small.material_at(0.05), SurfaceMaterial::kBlue);
+  EXPECT_EQ(small.material_at(0.16), SurfaceMaterial::kWhite);
+  EXPECT_EQ(small.material_at(0.30), SurfaceMaterial::kBlue);
+  EXPECT_EQ(cone_shape(ConeClass::kYellow).material_at(0.16), SurfaceMaterial::kBlack);
+  const ConeShape big = cone_shape(ConeClass::kOrangeBig);
+  EXPECT_DOUBLE_EQ(big.plate_width_m, 0.285);
+  EXPECT_DOUBLE_EQ(big.height_m, 0.505);
+  int white_bands = 0;
+  for (const ConeBand& band : big.bands) white_bands += band.material == SurfaceMaterial::kWhite;
+  EXPECT_EQ(white_bands, 2);
+
+  // every mesh vertex lies on the exact shape
+  const ConeMesh mesh = build_cone_mesh(big, 24);
+  EXPECT_EQ(mesh.triangles.size(), mesh.materials.size());
+  for (const Eigen::Vector3f& v : mesh.vertices)
+    EXPECT_LT(big.surface_distance(v.cast<double>()), 1e-6) << v.transpose();
+}
+
+}  // namespace
+}  // namespace conesim::sensors

@@ -1,0 +1,306 @@
+#include "sensors/stereo_camera.hpp"
+
+#include <gtest/gtest.h>
+#include <zlib.h>
+
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <optional>
+#include <set>
+
+#include "core/cone_geometry.hpp"
+#include "sensors/png_writer.hpp"
+#include "sim/vehicle_sim.hpp"
+#include "vehicle_models/vehicle_params.hpp"
+
+namespace conesim::sensors {
+namespace {
+
+using core::ConeClass;
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+
+constexpr int kBlueAhead = 1;
+constexpr int kYellowLeft = 2;
+constexpr int kBigOrangeRight = 3;
+constexpr int kBlueRight = 4;
+
+// a pixel's colour, 0-255
+struct Rgb {
+  int r, g, b;
+};
+
+bool is_blue(Rgb c) {
+  return c.b > c.r + 60 && c.b > c.g + 30;
+}
+bool is_yellow(Rgb c) {
+  return c.r > 120 && c.g > 100 && c.b < c.g / 2;
+}
+bool is_orange(Rgb c) {
+  return c.r > 150 && c.g < c.r * 3 / 4 && c.b < c.r / 3;
+}
+bool is_grey(Rgb c) {
+  return std::abs(c.r - c.g) < 20 && std::abs(c.g - c.b) < 25 && c.r > 25 && c.r < 170;
+}
+bool is_sky(Rgb c) {
+  return c.b > 150 && c.b >= c.r && c.b >= c.g;
+}
+
+Rgb pixel(const core::RgbImage& image, int u, int v) {
+  const uint8_t* p = image.rgb.data() + 3 * (static_cast<size_t>(v) * image.width_px + u);
+  return {p[0], p[1], p[2]};
+}
+
+// a few cones around the start: one straight ahead of the left camera 8 m away, one to the
+// left, a big orange one and a blue one to the right
+tracks::Track test_track(const StereoCameraConfig& config) {
+  tracks::Track t;
+  t.name = "camera_test";
+  const double ahead_y = config.mount_y_m + 0.5 * config.baseline_m;
+  t.cones = {{kBlueAhead, ConeClass::kBlue, {config.mount_x_m + 8.0, ahead_y}, std::nullopt},
+             {kYellowLeft, ConeClass::kYellow, {10.0, 2.5}, std::nullopt},
+             {kBigOrangeRight, ConeClass::kOrangeBig, {12.0, -2.0}, std::nullopt},
+             {kBlueRight, ConeClass::kBlue, {6.0, -1.5}, std::nullopt}};
+  return t;
+}
+
+// a car at rest at the track origin, its stereo camera, and one rendered frame
+struct Rig {
+  explicit Rig(const StereoCameraConfig& c = {}, std::set<int> knocked = {})
+      : config(c),
+        track(test_track(c)),
+        car(vehicle_models::VehicleParams{}, {}),
+        camera(c, car.model(), track) {
+    render(std::move(knocked));
+  }
+  void render(std::set<int> knocked) {
+    camera.render(
+        car.data(), car.vehicle_pose3(), 1234, [&](int id) { return knocked.count(id) > 0; }, true,
+        frame, labels);
+  }
+
+  // pixel of a point in the track frame in the left or right image, nullopt behind the camera
+  std::optional<Vector2d> project(const Vector3d& p, bool left) const {
+    const core::Pose3& eye = left ? labels.left_in_track : labels.right_in_track;
+    const Vector3d q = eye.inverse().transform(p);
+    if (q.z() <= 0.0) return std::nullopt;
+    const core::CameraIntrinsics& k = frame.intrinsics;
+    return Vector2d(k.fx * q.x() / q.z() + k.cx, k.fy * q.y() / q.z() + k.cy);
+  }
+
+  // point on a cone's axis at mid-height of its lowest band
+  Vector3d lower_band_centre(int id) const {
+    const tracks::Cone& cone = track.cone(id);
+    const core::ConeBand& band = core::cone_geometry(cone.cls).bands[0];
+    return {cone.position.x(), cone.position.y(), 0.5 * (band.z_bottom_m + band.z_top_m)};
+  }
+
+  StereoCameraConfig config;
+  tracks::Track track;
+  sim::VehicleSim car;
+  StereoCamera camera;
+  core::StereoFrame frame;
+  core::StereoLabels labels;
+};
+
+// mean column of the pixels of a colour inside a box around a cone's image, and their count
+std::pair<double, int> colour_centroid(const core::RgbImage& image, const Vector2d& centre,
+                                       int half_box_px, bool (*colour)(Rgb)) {
+  double sum = 0.0;
+  int count = 0;
+  for (int v = std::max(0, int(centre.y()) - half_box_px);
+       v < std::min(image.height_px, int(centre.y()) + half_box_px); ++v)
+    for (int u = std::max(0, int(centre.x()) - half_box_px);
+         u < std::min(image.width_px, int(centre.x()) + half_box_px); ++u)
+      if (colour(pixel(image, u, v))) {
+        sum += u;
+        ++count;
+      }
+  return {count ? sum / count : 0.0, count};
+}
+
+TEST(StereoCamera, PublishesExactCalibrationWithEachFrame) {
+  const Rig rig;
+  const StereoCameraConfig& c = rig.config;
+  const core::CameraIntrinsics& k = rig.frame.intrinsics;
+
+  // pinhole from the field of view, principal point in the centre
+  const double f =
+      0.5 * c.width_px / std::tan(0.5 * c.horizontal_fov_deg * std::numbers::pi / 180.0);
+  EXPECT_EQ(k.width_px, c.width_px);
+  EXPECT_EQ(k.height_px, c.height_px);
+  EXPECT_NEAR(k.fx, f, 1e-3);
+  EXPECT_NEAR(k.fy, f, 1e-3);
+  EXPECT_DOUBLE_EQ(k.cx, 0.5 * c.width_px - 0.5);
+  EXPECT_DOUBLE_EQ(k.cy, 0.5 * c.height_px - 0.5);
+
+  // extrinsics: left camera to the left, baseline apart, looking forward and down
+  EXPECT_EQ(rig.frame.stamp, 1234);
+  EXPECT_NEAR(rig.frame.baseline_m, c.baseline_m, 1e-12);
+  const Vector3d lr = rig.frame.left_in_vehicle.position - rig.frame.right_in_vehicle.position;
+  EXPECT_NEAR(lr.y(), c.baseline_m, 1e-12);
+  EXPECT_NEAR(lr.x(), 0.0, 1e-12);
+  const Vector3d axis = rig.frame.left_in_vehicle.orientation * Vector3d::UnitZ();
+  EXPECT_NEAR(std::asin(-axis.z()), c.pitch_down_deg * std::numbers::pi / 180.0, 1e-9);
+  EXPECT_NEAR(axis.y(), 0.0, 1e-12);
+  const Vector3d right = rig.frame.left_in_vehicle.orientation * Vector3d::UnitX();
+  EXPECT_NEAR(right.y(), -1.0, 1e-12);
+
+  // labels: the same poses in the track frame
+  const core::Pose3 expected = rig.car.vehicle_pose3().compose(rig.frame.left_in_vehicle);
+  EXPECT_LT((rig.labels.left_in_track.position - expected.position).norm(), 1e-12);
+  EXPECT_TRUE(rig.frame.left_depth_m.size() == size_t(c.width_px) * c.height_px);
+}
+
+TEST(StereoCamera, ConeProjectsThroughTheIntrinsicsToItsColour) {
+  const Rig rig;
+  const struct {
+    int id;
+    bool (*colour)(Rgb);
+  } cases[] = {{kBlueAhead, is_blue},
+               {kYellowLeft, is_yellow},
+               {kBigOrangeRight, is_orange},
+               {kBlueRight, is_blue}};
+  for (const auto& c : cases) {
+    for (const bool left : {true, false}) {
+      const auto uv = rig.project(rig.lower_band_centre(c.id), left);
+      ASSERT_TRUE(uv.has_value());
+      const int u = static_cast<int>(std::lround(uv->x())),
+                v = static_cast<int>(std::lround(uv->y()));
+      ASSERT_TRUE(u >= 0 && u < rig.config.width_px && v >= 0 && v < rig.config.height_px);
+      const Rgb p = pixel(left ? rig.frame.left : rig.frame.right, u, v);
+      EXPECT_TRUE(c.colour(p)) << "cone " << c.id << (left ? " left" : " right") << " at " << u
+                               << "," << v << ": " << p.r << " " << p.g << " " << p.b;
+    }
+  }
+}
+
+TEST(StereoCamera, DisparityIsBaselineTimesFocalOverDepth) {
+  const Rig rig;
+  const Vector3d centre = rig.lower_band_centre(kBlueAhead);
+  const auto left = rig.project(centre, true);
+  const auto right = rig.project(centre, false);
+  ASSERT_TRUE(left && right);
+
+  // the cone's column in each image: centroid of its blue pixels (the cone is ~20 px wide)
+  const auto [u_left, n_left] = colour_centroid(rig.frame.left, *left, 30, is_blue);
+  const auto [u_right, n_right] = colour_centroid(rig.frame.right, *right, 30, is_blue);
+  ASSERT_GT(n_left, 50);
+  ASSERT_GT(n_right, 50);
+
+  // depth of the cone's axis along the optical axis
+  const double z = rig.labels.left_in_track.inverse().transform(centre).z();
+  const double expected = rig.frame.baseline_m * rig.frame.intrinsics.fx / z;
+  // a silhouette's centroid is quantised to whole pixels over ~20 columns: well under 0.5 px
+  std::printf("measured: disparity %.3f px, B f / Z %.3f px\n", u_left - u_right, expected);
+  EXPECT_NEAR(u_left - u_right, expected, 0.5);
+}
+
+TEST(StereoCamera, DepthIsTheDistanceToTheSurfaceAlongTheOpticalAxis) {
+  const Rig rig;
+  const core::Pose3 camera_from_track = rig.labels.left_in_track.inverse();
+  const core::CameraIntrinsics& k = rig.frame.intrinsics;
+  const auto depth_at = [&](const Vector2d& uv) {
+    return rig.frame.left_depth_m[std::lround(uv.y()) * k.width_px + std::lround(uv.x())];
+  };
+
+  // the front of the cone straight ahead, at mid-height of its lower band
+  const tracks::Cone& cone = rig.track.cone(kBlueAhead);
+  const core::ConeBand& band = core::cone_geometry(cone.cls).bands[0];
+  const Vector3d eye = rig.labels.left_in_track.position;
+  const Vector2d towards_eye = (Vector2d(eye.x(), eye.y()) - cone.position).normalized();
+  const double radius = 0.5 * (band.radius_bottom_m + band.radius_top_m);
+  const Vector2d front = cone.position + radius * towards_eye;
+  const Vector3d surface(front.x(), front.y(), 0.5 * (band.z_bottom_m + band.z_top_m));
+  const auto uv = rig.project(surface, true);
+  ASSERT_TRUE(uv.has_value());
+  // errors: half a pixel of rounding on the slanted side (2 mm), facets (< 2 mm), buffer (< 1 mm)
+  const double cone_z = camera_from_track.transform(surface).z();
+  std::printf("measured: cone depth %.4f m, true %.4f m\n", depth_at(*uv), cone_z);
+  EXPECT_NEAR(depth_at(*uv), cone_z, 0.01);
+
+  // the ground below the horizon: where the pixel's ray meets the plane z = 0
+  for (const double row : {0.7, 0.85}) {
+    const Vector2d ground_uv(k.cx + 40.0, row * k.height_px);
+    const Vector3d ray =
+        rig.labels.left_in_track.orientation *
+        Vector3d((ground_uv.x() - k.cx) / k.fx, (ground_uv.y() - k.cy) / k.fy, 1.0);
+    const double z = -eye.z() / ray.z();  // the ray's optical z is 1, so its length is the depth
+    std::printf("measured: ground depth %.4f m, true %.4f m\n", depth_at(ground_uv), z);
+    EXPECT_NEAR(depth_at(ground_uv), z, 0.01);
+  }
+
+  // the sky has no depth
+  EXPECT_TRUE(std::isinf(rig.frame.left_depth_m[k.width_px / 2]));
+}
+
+TEST(StereoCamera, KnockedConesAreNotDrawn) {
+  Rig rig({}, {kBlueRight});
+  const auto uv = rig.project(rig.lower_band_centre(kBlueRight), true);
+  ASSERT_TRUE(uv.has_value());
+  EXPECT_EQ(colour_centroid(rig.frame.left, *uv, 40, is_blue).second, 0);
+  EXPECT_TRUE(is_grey(pixel(rig.frame.left, std::lround(uv->x()), std::lround(uv->y()))));
+
+  // standing again, it is drawn
+  rig.render({});
+  EXPECT_GT(colour_centroid(rig.frame.left, *uv, 40, is_blue).second, 50);
+}
+
+TEST(StereoCamera, GroundLooksLikeAsphaltAndTheSkyIsAbove) {
+  const Rig rig;
+  const core::RgbImage& image = rig.frame.left;
+  int grey = 0, sky = 0, samples = 0;
+  for (int u = 10; u < image.width_px; u += 60, ++samples) {
+    grey += is_grey(pixel(image, u, image.height_px * 3 / 4));
+    sky += is_sky(pixel(image, u, 10));
+  }
+  EXPECT_EQ(grey, samples);
+  EXPECT_EQ(sky, samples);
+}
+
+TEST(StereoCamera, WritesViewablePngs) {
+  const Rig rig;
+  const std::string dir = ::testing::TempDir();
+  EXPECT_EQ(write_png(dir + "conesim_stereo_left.png", rig.frame.left), "");
+  EXPECT_EQ(write_png(dir + "conesim_stereo_right.png", rig.frame.right), "");
+  const core::RgbImage depth = depth_to_image(rig.frame.left_depth_m, rig.frame.intrinsics.width_px,
+                                              rig.frame.intrinsics.height_px, 30.0);
+  EXPECT_EQ(write_png(dir + "conesim_stereo_depth.png", depth), "");
+
+  // the encoding round-trips: signature, then the scanlines inside the IDAT chunk
+  const std::vector<uint8_t> png = encode_png(rig.frame.left);
+  ASSERT_GT(png.size(), 57u);
+  EXPECT_EQ(png[1], 'P');
+  const size_t idat_length = (png[33] << 24) | (png[34] << 16) | (png[35] << 8) | png[36];
+  const size_t w = rig.frame.left.width_px, h = rig.frame.left.height_px;
+  std::vector<uint8_t> raw((3 * w + 1) * h);
+  uLongf raw_size = raw.size();
+  ASSERT_EQ(uncompress(raw.data(), &raw_size, png.data() + 41, idat_length), Z_OK);
+  ASSERT_EQ(raw_size, raw.size());
+  EXPECT_EQ(raw[0], 0);
+  EXPECT_EQ(raw[(3 * w + 1) * 100 + 1 + 3 * 200], rig.frame.left.rgb[3 * (w * 100 + 200)]);
+}
+
+TEST(StereoCamera, ConfigurationErrorsNameTheKey) {
+  EXPECT_EQ(StereoCameraConfig{}.validate(), "");
+  const auto error = [](auto mutate) {
+    StereoCameraConfig c;
+    mutate(c);
+    return c.validate();
+  };
+  EXPECT_EQ(error([](auto& c) { c.width_px = 0; }).rfind("width_px", 0), 0u);
+  EXPECT_EQ(error([](auto& c) { c.horizontal_fov_deg = 200; }).rfind("horizontal_fov_deg", 0), 0u);
+  EXPECT_EQ(error([](auto& c) { c.baseline_m = -0.1; }).rfind("baseline_m", 0), 0u);
+  EXPECT_EQ(error([](auto& c) { c.far_m = 0.5; }).rfind("far_m", 0), 0u);
+
+  // larger than the model's offscreen buffer
+  StereoCameraConfig huge;
+  huge.width_px = 4000;
+  const tracks::Track track = test_track(huge);
+  const sim::VehicleSim car(vehicle_models::VehicleParams{}, {});
+  EXPECT_THROW(StereoCamera(huge, car.model(), track), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace conesim::sensors
