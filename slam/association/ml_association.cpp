@@ -1,0 +1,188 @@
+#include "slam/association/ml_association.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace conesim::slam {
+
+namespace {
+
+// one candidate pairing of observation and landmark, with its cost and the offset from where
+// the observation puts the cone to the landmark (map frame)
+struct Pairing {
+  double cost = 0.0;
+  int observation = 0;
+  int candidate = 0;
+  core::Vec2 offset = core::Vec2::Zero();
+  bool old = false;
+  bool tight = false;
+};
+
+// the old pairings that agree on the offset most observations share (empty without support)
+std::vector<Pairing> consensus(const AssociationConfig& config,
+                               const std::vector<Pairing>& pairings) {
+  std::vector<Pairing> best;
+  size_t best_support = 0;
+  double best_offset = 0.0;
+  for (const Pairing& hypothesis : pairings) {
+    if (!hypothesis.old) continue;
+    // the pairings that agree with this offset, counted by distinct observations
+    std::vector<Pairing> agree;
+    std::vector<int> observations;
+    for (const Pairing& p : pairings) {
+      if (!p.old || (p.offset - hypothesis.offset).norm() > config.consensus_tolerance_m) continue;
+      agree.push_back(p);
+      if (std::find(observations.begin(), observations.end(), p.observation) == observations.end())
+        observations.push_back(p.observation);
+    }
+    const double offset = hypothesis.offset.norm();
+    if (observations.size() > best_support ||
+        (observations.size() == best_support && offset < best_offset)) {
+      best = std::move(agree);
+      best_support = observations.size();
+      best_offset = offset;
+    }
+  }
+  if (static_cast<int>(best_support) < config.consensus_min_support) return {};
+  return best;
+}
+
+// innovation covariance of an observation of a landmark
+Eigen::Matrix2d innovation_covariance(const core::Pose2& pose,
+                                      const Eigen::Matrix3d* pose_covariance,
+                                      const LandmarkCandidate& landmark,
+                                      const core::ConeObservation& observation) {
+  Eigen::Matrix<double, 2, 3> h_pose;
+  Eigen::Matrix2d h_landmark;
+  predict_observation(pose, landmark.position, &h_pose, &h_landmark);
+  const Eigen::Matrix2d p_landmark =
+      landmark.covariance + Eigen::Matrix2d::Identity() * landmark.drift_variance_m2;
+  Eigen::Matrix2d s = h_landmark * p_landmark * h_landmark.transpose() + observation.covariance;
+  if (pose_covariance) s += h_pose * *pose_covariance * h_pose.transpose();
+  return s;
+}
+
+}  // namespace
+
+core::ConeClass voted_class(const std::array<int, 5>& votes) {
+  int best = static_cast<int>(core::ConeClass::kUnknown);
+  int best_votes = 0;
+  for (int c = 0; c < 4; ++c) {
+    if (votes[c] > best_votes) {
+      best = c;
+      best_votes = votes[c];
+    }
+  }
+  return static_cast<core::ConeClass>(best);
+}
+
+bool class_compatible(core::ConeClass observed, const std::array<int, 5>& votes, int margin) {
+  if (observed == core::ConeClass::kUnknown) return true;
+  const core::ConeClass landmark = voted_class(votes);
+  if (landmark == core::ConeClass::kUnknown || landmark == observed) return true;
+  // a different class only counts against the pairing once it leads clearly
+  return votes[static_cast<int>(landmark)] - votes[static_cast<int>(observed)] < margin;
+}
+
+core::Vec2 predict_observation(const core::Pose2& pose, const core::Vec2& landmark,
+                               Eigen::Matrix<double, 2, 3>* h_pose, Eigen::Matrix2d* h_landmark) {
+  const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
+  const double dx = landmark.x() - pose.x, dy = landmark.y() - pose.y;
+  const core::Vec2 z(c * dx + s * dy, -s * dx + c * dy);
+  // z = R^T (l - p): by l it is R^T, by p it is -R^T, by yaw it is (z.y, -z.x)
+  if (h_landmark) *h_landmark << c, s, -s, c;
+  if (h_pose) *h_pose << -c, -s, z.y(), s, -c, -z.x();
+  return z;
+}
+
+double mahalanobis2(const core::Pose2& pose, const Eigen::Matrix3d* pose_covariance,
+                    const LandmarkCandidate& landmark, const core::ConeObservation& observation) {
+  const core::Vec2 innovation = observation.position - predict_observation(pose, landmark.position);
+  const Eigen::Matrix2d s = innovation_covariance(pose, pose_covariance, landmark, observation);
+  return innovation.dot(s.ldlt().solve(innovation));
+}
+
+std::vector<Association> associate(const AssociationConfig& config, const core::Pose2& pose,
+                                   const Eigen::Matrix3d* pose_covariance,
+                                   const std::vector<LandmarkCandidate>& candidates,
+                                   const core::ConeObservations& observations, bool allow_new) {
+  const int n_obs = static_cast<int>(observations.cones.size());
+  const int n_cand = static_cast<int>(candidates.size());
+  std::vector<Association> out(n_obs);
+  std::vector<bool> taken(n_cand, false);
+  std::vector<double> nearest_d2(n_obs, std::numeric_limits<double>::infinity());
+  std::vector<double> nearest_m(n_obs, std::numeric_limits<double>::infinity());
+
+  // every gated pairing, with its negative log-likelihood as the cost
+  std::vector<Pairing> pairings;
+  std::vector<Pairing> tracked;
+  for (int i = 0; i < n_obs; ++i) {
+    const core::ConeObservation& obs = observations.cones[i];
+    const core::Vec2 obs_map = pose.transform(obs.position);
+    for (int j = 0; j < n_cand; ++j) {
+      const LandmarkCandidate& lm = candidates[j];
+      const double distance_m = (lm.position - obs_map).norm();
+      nearest_m[i] = std::min(nearest_m[i], distance_m);
+      if (distance_m > 6.0) continue;  // far beyond any gate: skip the algebra
+      const core::Vec2 innovation = obs.position - predict_observation(pose, lm.position);
+      const Eigen::Matrix2d s = innovation_covariance(pose, pose_covariance, lm, obs);
+      const double d2 = innovation.dot(s.ldlt().solve(innovation));
+      nearest_d2[i] = std::min(nearest_d2[i], d2);
+      if (!class_compatible(obs.cls, lm.class_votes, config.class_vote_margin)) continue;
+      const double cost = d2 + std::log(s.determinant());
+      Pairing pairing{
+          cost, i, j, lm.position - obs_map, lm.drift_variance_m2 > config.old_drift_variance_m2,
+          false};
+      // tracking-aided: the same perception track, within the loose gate
+      if (config.use_track_ids && obs.track_id >= 0 && obs.track_id == lm.track_id &&
+          d2 < config.track_gate_chi2) {
+        tracked.push_back(pairing);
+      }
+      if (d2 >= config.gate_chi2) continue;
+      // old landmarks: also whether the pairing passes without the drift allowance
+      if (pairing.old) {
+        LandmarkCandidate undrifted = lm;
+        undrifted.drift_variance_m2 = 0.0;
+        pairing.tight = mahalanobis2(pose, pose_covariance, undrifted, obs) < config.gate_chi2;
+      }
+      pairings.push_back(pairing);
+    }
+  }
+
+  // old landmarks only along the consensus offset, or within the tight gate without one
+  const std::vector<Pairing> agreed = consensus(config, pairings);
+  std::vector<Pairing> kept;
+  for (const Pairing& p : pairings) {
+    const bool in_consensus = std::any_of(agreed.begin(), agreed.end(), [&](const Pairing& a) {
+      return a.observation == p.observation && a.candidate == p.candidate;
+    });
+    if (!p.old || in_consensus || (agreed.empty() && p.tight)) kept.push_back(p);
+  }
+  pairings = std::move(kept);
+
+  // greedy with mutual exclusion: tracked pairings first, then the likeliest of the rest
+  const auto by_cost = [](const Pairing& a, const Pairing& b) { return a.cost < b.cost; };
+  std::sort(tracked.begin(), tracked.end(), by_cost);
+  std::sort(pairings.begin(), pairings.end(), by_cost);
+  for (const std::vector<Pairing>* list : {&tracked, &pairings}) {
+    for (const Pairing& p : *list) {
+      if (out[p.observation].kind == Association::Kind::kMatched || taken[p.candidate]) continue;
+      out[p.observation] = {candidates[p.candidate].id, Association::Kind::kMatched};
+      taken[p.candidate] = true;
+    }
+  }
+
+  // the rest: new when far from everything, else rejected
+  for (int i = 0; i < n_obs; ++i) {
+    if (out[i].kind == Association::Kind::kMatched) continue;
+    const bool far = nearest_d2[i] > config.new_landmark_chi2 &&
+                     nearest_m[i] > config.new_landmark_min_distance_m;
+    out[i].kind = allow_new && far ? Association::Kind::kNew : Association::Kind::kRejected;
+  }
+  return out;
+}
+
+}  // namespace conesim::slam

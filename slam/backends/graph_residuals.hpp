@@ -1,0 +1,121 @@
+#pragma once
+// The residuals of the pose graph: one small functor per edge, each with a static Create().
+// Poses are parameter blocks (x, y, yaw) in the map frame, landmarks (x, y). Angles are
+// normalised inside the residuals; residuals are whitened with the upper Cholesky factor of the
+// information matrix (STYLE.md: matrixL is wrong for non-diagonal information).
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <cmath>
+
+#include "core/geometry.hpp"
+
+namespace conesim::slam {
+
+/// Wraps an angle to [-pi, pi) for doubles and Ceres jets alike.
+template <typename T>
+T normalize_angle_jet(const T& a) {
+  using std::floor;
+  const T two_pi(2.0 * M_PI);
+  return a - two_pi * floor((a + T(M_PI)) / two_pi);
+}
+
+/// The whitening factor of a covariance: the upper Cholesky factor U of the information
+/// matrix (U^T U = covariance^-1), so that |U e|^2 is the Mahalanobis distance of e.
+template <int N>
+Eigen::Matrix<double, N, N> sqrt_information(const Eigen::Matrix<double, N, N>& covariance) {
+  const Eigen::Matrix<double, N, N> information = covariance.inverse();
+  return information.llt().matrixU();
+}
+
+/// Odometry edge: the relative pose of b in the frame of a against the measured delta.
+struct OdometryResidual {
+  OdometryResidual(const core::Pose2& delta, const Eigen::Matrix3d& sqrt_information)
+      : delta_(delta), sqrt_information_(sqrt_information) {}
+
+  template <typename T>
+  bool operator()(const T* a, const T* b, T* residual) const {
+    // relative pose of b in a's frame
+    const T c = cos(a[2]), s = sin(a[2]);
+    const T dx = b[0] - a[0], dy = b[1] - a[1];
+    Eigen::Matrix<T, 3, 1> error;
+    error << c * dx + s * dy - T(delta_.x), -s * dx + c * dy - T(delta_.y),
+        normalize_angle_jet(b[2] - a[2] - T(delta_.yaw));
+    // whiten
+    Eigen::Map<Eigen::Matrix<T, 3, 1>> whitened(residual);
+    whitened = sqrt_information_.cast<T>() * error;
+    return true;
+  }
+
+  /// A cost function with 3 residuals over pose a and pose b.
+  static ceres::CostFunction* Create(const core::Pose2& delta,
+                                     const Eigen::Matrix3d& sqrt_information) {
+    return new ceres::AutoDiffCostFunction<OdometryResidual, 3, 3, 3>(
+        new OdometryResidual(delta, sqrt_information));
+  }
+
+ private:
+  core::Pose2 delta_;
+  Eigen::Matrix3d sqrt_information_;
+};
+
+/// Observation edge: a landmark seen from a pose, Cartesian in the vehicle frame.
+struct ObservationResidual {
+  ObservationResidual(const core::Vec2& measured, const Eigen::Matrix2d& sqrt_information)
+      : measured_(measured), sqrt_information_(sqrt_information) {}
+
+  template <typename T>
+  bool operator()(const T* pose, const T* landmark, T* residual) const {
+    // the landmark in the vehicle frame
+    const T c = cos(pose[2]), s = sin(pose[2]);
+    const T dx = landmark[0] - pose[0], dy = landmark[1] - pose[1];
+    Eigen::Matrix<T, 2, 1> error;
+    error << c * dx + s * dy - T(measured_.x()), -s * dx + c * dy - T(measured_.y());
+    // whiten
+    Eigen::Map<Eigen::Matrix<T, 2, 1>> whitened(residual);
+    whitened = sqrt_information_.cast<T>() * error;
+    return true;
+  }
+
+  /// A cost function with 2 residuals over a pose and a landmark.
+  static ceres::CostFunction* Create(const core::Vec2& measured,
+                                     const Eigen::Matrix2d& sqrt_information) {
+    return new ceres::AutoDiffCostFunction<ObservationResidual, 2, 3, 2>(
+        new ObservationResidual(measured, sqrt_information));
+  }
+
+ private:
+  core::Vec2 measured_;
+  Eigen::Matrix2d sqrt_information_;
+};
+
+/// Instantaneous-centre-of-rotation edge (RaceUp): with no lateral velocity at the rear axle the
+/// car moves on an arc, whose chord points half the heading change to the side. The residual is
+/// the part of the relative translation across that chord direction.
+struct IcrResidual {
+  explicit IcrResidual(double sigma_m) : inv_sigma_(1.0 / sigma_m) {}
+
+  template <typename T>
+  bool operator()(const T* a, const T* b, T* residual) const {
+    // relative translation and heading change in a's frame
+    const T c = cos(a[2]), s = sin(a[2]);
+    const T dx = b[0] - a[0], dy = b[1] - a[1];
+    const T forward = c * dx + s * dy, left = -s * dx + c * dy;
+    const T half_turn = normalize_angle_jet(b[2] - a[2]) / T(2.0);
+    // lateral offset from the chord of the arc
+    residual[0] = T(inv_sigma_) * (left * cos(half_turn) - forward * sin(half_turn));
+    return true;
+  }
+
+  /// A cost function with 1 residual over pose a and pose b.
+  static ceres::CostFunction* Create(double sigma_m) {
+    return new ceres::AutoDiffCostFunction<IcrResidual, 1, 3, 3>(new IcrResidual(sigma_m));
+  }
+
+ private:
+  double inv_sigma_;
+};
+
+}  // namespace conesim::slam

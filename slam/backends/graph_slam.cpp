@@ -1,0 +1,437 @@
+#include "slam/backends/graph_slam.hpp"
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <unordered_set>
+
+#include "slam/backends/graph_residuals.hpp"
+
+namespace conesim::slam {
+
+namespace {
+
+// solver options for small dense windows and for the big sparse global problem
+ceres::Solver::Options solver_options(int iterations, bool sparse) {
+  ceres::Solver::Options o;
+  o.linear_solver_type = sparse ? ceres::SPARSE_NORMAL_CHOLESKY : ceres::DENSE_SCHUR;
+  o.max_num_iterations = iterations;
+  o.num_threads = 1;
+  o.logging_type = ceres::SILENT;
+  o.minimizer_progress_to_stdout = false;
+  return o;
+}
+
+// problems borrow the cost and loss functions owned by the graph
+ceres::Problem::Options problem_options() {
+  ceres::Problem::Options o;
+  o.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  o.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  return o;
+}
+
+}  // namespace
+
+std::string GraphSlamConfig::validate() const {
+  std::ostringstream s;
+  if (confirm_sightings < 1)
+    s << "graph_slam.confirm_sightings: expected >= 1";
+  else if (window_poses < 1)
+    s << "graph_slam.window_poses: expected >= 1";
+  else if (!(max_range_m > min_range_m))
+    s << "graph_slam.max_range_m: expected > min_range_m";
+  else if (!(fov_deg > 0.0 && fov_deg <= 360.0))
+    s << "graph_slam.fov_deg: expected in (0, 360]";
+  else if (!(icr_sigma_m >= 0.0))
+    s << "graph_slam.icr_sigma_m: expected >= 0";
+  else if (!(observation_huber > 0.0))
+    s << "graph_slam.observation_huber: expected > 0";
+  if (!s.str().empty()) return s.str();
+  return loop_closure.validate();
+}
+
+GraphSlam::GraphSlam(const GraphSlamConfig& config)
+    : config_(config), huber_(std::make_unique<ceres::HuberLoss>(config.observation_huber)) {
+  reset({}, 0);
+}
+
+GraphSlam::~GraphSlam() = default;
+
+void GraphSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
+  // the first pose node is the gauge: the given start pose, never moved
+  poses_.clear();
+  landmarks_.clear();
+  edges_.clear();
+  associations_.clear();
+  PoseNode start;
+  start.stamp = stamp;
+  start.x = {initial_pose.x, initial_pose.y, initial_pose.yaw};
+  poses_.push_back(std::move(start));
+  pose_covariance_ = Eigen::Vector3d(1e-6, 1e-6, 1e-8).asDiagonal();
+  phase_ = core::SlamPhase::kMapping;
+  map_complete_ = false;
+  loop_closures_ = 0;
+  travel_m_ = 0.0;
+  speed_mps_ = 0.0;
+  yaw_rate_rps_ = 0.0;
+}
+
+void GraphSlam::set_prior_map(const std::vector<core::MapCone>& map) {
+  // known cones become fixed, confirmed landmarks; from now on the backend only localises
+  for (const core::MapCone& cone : map) {
+    Landmark lm;
+    lm.id = static_cast<int>(landmarks_.size());
+    lm.x = {cone.position.x(), cone.position.y()};
+    lm.covariance = cone.covariance;
+    if (cone.cls != core::ConeClass::kUnknown) lm.class_votes[static_cast<int>(cone.cls)] = 100;
+    lm.confirmed = true;
+    lm.fixed = true;
+    landmarks_.push_back(std::move(lm));
+  }
+  phase_ = core::SlamPhase::kLocalisation;
+  map_complete_ = true;
+}
+
+void GraphSlam::process(const SlamInput& input) {
+  // predict, associate, update, optimise, then keep the map tidy and close the loop
+  predict(input.odometry);
+  associate_batch(input.observations);
+  update(input.observations);
+  if (phase_ == core::SlamPhase::kLocalisation) {
+    localise();
+    return;
+  }
+  optimise_window();
+  const LoopClosureStats stats = update_landmark_statistics();
+  if (loop_closures_ == 0 && loop_closed(config_.loop_closure, stats)) close_loop();
+}
+
+void GraphSlam::predict(const OdometryDelta& odometry) {
+  // a new pose node where the odometry puts it, tied to the previous one
+  const core::Pose2 previous_pose = poses_.back().pose();
+  const core::Pose2 pose = previous_pose.compose(odometry.delta);
+  PoseNode node;
+  node.stamp = odometry.to;
+  node.x = {pose.x, pose.y, pose.yaw};
+  travel_m_ += odometry.distance_m;
+  node.travel_m = travel_m_;
+  node.odometry.reset(
+      OdometryResidual::Create(odometry.delta, sqrt_information<3>(odometry.covariance)));
+  if (config_.icr_sigma_m > 0.0) node.icr.reset(IcrResidual::Create(config_.icr_sigma_m));
+  poses_.push_back(std::move(node));
+
+  // the pose covariance grows by the odometry's, rotated into the map frame
+  const core::Pose2 from = previous_pose;
+  Eigen::Matrix3d f_pose;
+  f_pose << 1, 0, -std::sin(from.yaw) * odometry.delta.x - std::cos(from.yaw) * odometry.delta.y, 0,
+      1, std::cos(from.yaw) * odometry.delta.x - std::sin(from.yaw) * odometry.delta.y, 0, 0, 1;
+  Eigen::Matrix3d f_delta = Eigen::Matrix3d::Identity();
+  f_delta.topLeftCorner<2, 2>() = Eigen::Rotation2Dd(from.yaw).toRotationMatrix();
+  pose_covariance_ = f_pose * pose_covariance_ * f_pose.transpose() +
+                     f_delta * odometry.covariance * f_delta.transpose();
+  speed_mps_ = odometry.speed_mps;
+  yaw_rate_rps_ = odometry.yaw_rate_rps;
+}
+
+std::vector<LandmarkCandidate> GraphSlam::candidates() const {
+  // landmarks near enough to be seen, with the drift allowed since each was last seen
+  const core::Pose2 pose = poses_.back().pose();
+  const double reach = config_.sensor_x_m + config_.max_range_m + 3.0;
+  const bool localising = phase_ == core::SlamPhase::kLocalisation;
+  std::vector<LandmarkCandidate> out;
+  for (const Landmark& lm : landmarks_) {
+    if (lm.removed || (localising && !lm.confirmed)) continue;
+    if ((lm.position() - pose.position()).squaredNorm() > reach * reach) continue;
+    LandmarkCandidate c;
+    c.id = lm.id;
+    c.position = lm.position();
+    c.covariance = lm.covariance;
+    c.class_votes = lm.class_votes;
+    c.track_id = lm.track_id;
+    if (!localising) {
+      c.drift_variance_m2 =
+          std::min(config_.max_drift_variance_m2,
+                   config_.drift_variance_m2_per_m * (travel_m_ - lm.last_seen_travel_m));
+    }
+    out.push_back(c);
+  }
+  return out;
+}
+
+void GraphSlam::add_observation_edge(int pose, int landmark,
+                                     const core::ConeObservation& observation) {
+  ObservationEdge edge;
+  edge.pose = pose;
+  edge.landmark = landmark;
+  edge.cost.reset(ObservationResidual::Create(observation.position,
+                                              sqrt_information<2>(observation.covariance)));
+  const int index = static_cast<int>(edges_.size());
+  edges_.push_back(std::move(edge));
+  poses_[pose].edges.push_back(index);
+  landmarks_[landmark].edges.push_back(index);
+}
+
+void GraphSlam::associate_batch(const core::ConeObservations& observations) {
+  // against the landmarks in reach; new landmarks only while mapping
+  associations_ = associate(config_.association, poses_.back().pose(), &pose_covariance_,
+                            candidates(), observations, phase_ == core::SlamPhase::kMapping);
+}
+
+void GraphSlam::update(const core::ConeObservations& observations) {
+  const int pose_index = static_cast<int>(poses_.size()) - 1;
+  const core::Pose2 pose = poses_.back().pose();
+  const bool mapping = phase_ == core::SlamPhase::kMapping;
+  localisation_terms_.clear();
+  Eigen::Matrix3d pose_information = pose_covariance_.inverse();
+
+  for (size_t i = 0; i < observations.cones.size(); ++i) {
+    const core::ConeObservation& obs = observations.cones[i];
+    Association& a = associations_[i];
+    if (a.kind == Association::Kind::kRejected) continue;
+
+    // a new landmark where the observation puts it, with the observation's covariance
+    if (a.kind == Association::Kind::kNew) {
+      Landmark lm;
+      lm.id = static_cast<int>(landmarks_.size());
+      const core::Vec2 p = pose.transform(obs.position);
+      lm.x = {p.x(), p.y()};
+      const Eigen::Matrix2d rot = Eigen::Rotation2Dd(pose.yaw).toRotationMatrix();
+      lm.covariance = rot * obs.covariance * rot.transpose();
+      lm.first_travel_m = travel_m_;
+      lm.first_heading_rad = pose.yaw;
+      landmarks_.push_back(std::move(lm));
+      a.landmark_id = landmarks_.back().id;
+    }
+    Landmark& lm = landmarks_[a.landmark_id];
+
+    // a matched observation informs the pose (for the next gate)
+    if (a.kind == Association::Kind::kMatched) {
+      Eigen::Matrix<double, 2, 3> h_pose;
+      Eigen::Matrix2d h_landmark;
+      predict_observation(pose, lm.position(), &h_pose, &h_landmark);
+      const Eigen::Matrix2d r =
+          obs.covariance + h_landmark * lm.covariance * h_landmark.transpose();
+      pose_information += h_pose.transpose() * r.inverse() * h_pose;
+    }
+
+    // the landmark's EKF refines it with the observation (the pose taken as known)
+    if (a.kind == Association::Kind::kMatched && !lm.fixed) {
+      Eigen::Matrix2d h;
+      const core::Vec2 predicted = predict_observation(pose, lm.position(), nullptr, &h);
+      const Eigen::Matrix2d s = h * lm.covariance * h.transpose() + obs.covariance;
+      const Eigen::Matrix2d k = lm.covariance * h.transpose() * s.inverse();
+      const core::Vec2 x = lm.position() + k * (obs.position - predicted);
+      lm.x = {x.x(), x.y()};
+      lm.covariance = (Eigen::Matrix2d::Identity() - k * h) * lm.covariance;
+    }
+
+    // bookkeeping: sightings, class votes, track id, and an edge while mapping
+    ++lm.sightings;
+    lm.last_seen_travel_m = travel_m_;
+    if (obs.cls != core::ConeClass::kUnknown) ++lm.class_votes[static_cast<int>(obs.cls)];
+    if (obs.track_id >= 0) lm.track_id = obs.track_id;
+    if (lm.sightings >= config_.confirm_sightings) lm.confirmed = true;
+    if (mapping) {
+      add_observation_edge(pose_index, lm.id, obs);
+    } else {
+      localisation_terms_.push_back(
+          {std::unique_ptr<ceres::CostFunction>(
+               ObservationResidual::Create(obs.position, sqrt_information<2>(obs.covariance))),
+           lm.id});
+    }
+  }
+  pose_covariance_ = pose_information.inverse();
+}
+
+void GraphSlam::optimise_window() {
+  // the window: the last poses free, the one before them fixed
+  const int n = static_cast<int>(poses_.size());
+  const int first = std::max(1, n - config_.window_poses);
+  ceres::Problem problem(problem_options());
+  std::vector<int> window_landmarks;
+  for (int i = first; i < n; ++i) {
+    PoseNode& node = poses_[i];
+    PoseNode& previous = poses_[i - 1];
+    problem.AddResidualBlock(node.odometry.get(), nullptr, previous.x.data(), node.x.data());
+    if (node.icr)
+      problem.AddResidualBlock(node.icr.get(), nullptr, previous.x.data(), node.x.data());
+    for (int e : node.edges) window_landmarks.push_back(edges_[e].landmark);
+  }
+  problem.SetParameterBlockConstant(poses_[first - 1].x.data());
+  std::sort(window_landmarks.begin(), window_landmarks.end());
+  window_landmarks.erase(std::unique(window_landmarks.begin(), window_landmarks.end()),
+                         window_landmarks.end());
+
+  // every observation of the window's landmarks, older poses held fixed
+  for (int id : window_landmarks) {
+    Landmark& lm = landmarks_[id];
+    if (lm.removed) continue;
+    for (int e : lm.edges) {
+      ObservationEdge& edge = edges_[e];
+      double* pose = poses_[edge.pose].x.data();
+      problem.AddResidualBlock(edge.cost.get(), huber_.get(), pose, lm.x.data());
+      if (edge.pose < first) problem.SetParameterBlockConstant(pose);
+    }
+    if (lm.fixed) problem.SetParameterBlockConstant(lm.x.data());
+  }
+
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options(config_.window_iterations, false), &problem, &summary);
+}
+
+void GraphSlam::localise() {
+  // the newest pose against the fixed map and the previous pose
+  const int n = static_cast<int>(poses_.size());
+  PoseNode& node = poses_[n - 1];
+  PoseNode& previous = poses_[n - 2];
+  ceres::Problem problem(problem_options());
+  problem.AddResidualBlock(node.odometry.get(), nullptr, previous.x.data(), node.x.data());
+  if (node.icr) problem.AddResidualBlock(node.icr.get(), nullptr, previous.x.data(), node.x.data());
+  problem.SetParameterBlockConstant(previous.x.data());
+
+  // this batch's observations of the fixed map
+  for (const LocalisationTerm& term : localisation_terms_) {
+    double* landmark = landmarks_[term.landmark].x.data();
+    problem.AddResidualBlock(term.cost.get(), huber_.get(), node.x.data(), landmark);
+    problem.SetParameterBlockConstant(landmark);
+  }
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options(config_.localisation_iterations, false), &problem, &summary);
+}
+
+bool GraphSlam::in_field_of_view(const core::Pose2& pose, const core::Vec2& landmark) const {
+  // inside the sensor's range and opening, by the margin
+  const core::Vec2 local = pose.inverse_transform(landmark) - core::Vec2(config_.sensor_x_m, 0.0);
+  const double range = local.norm();
+  if (range < config_.min_range_m + config_.fov_margin_m ||
+      range > config_.max_range_m - config_.fov_margin_m) {
+    return false;
+  }
+  const double half_fov = 0.5 * config_.fov_deg * M_PI / 180.0;
+  const double bearing = std::atan2(local.y(), local.x());
+  return std::abs(bearing) <= half_fov - config_.fov_margin_m / range;
+}
+
+void GraphSlam::remove_landmark(Landmark& landmark) {
+  // its edges stay in the store but are skipped from now on
+  landmark.removed = true;
+  landmark.confirmed = false;
+}
+
+LoopClosureStats GraphSlam::update_landmark_statistics() {
+  const core::Pose2 pose = poses_.back().pose();
+  std::unordered_set<int> observed;
+  for (const Association& a : associations_) {
+    if (a.kind != Association::Kind::kRejected) observed.insert(a.landmark_id);
+  }
+
+  // each landmark in reach: missed or seen, its loop state, and the batch's loop statistics
+  const double reach = config_.sensor_x_m + config_.max_range_m + 3.0;
+  LoopClosureStats stats;
+  stats.travel_m = travel_m_;
+  for (Landmark& lm : landmarks_) {
+    if (lm.removed) continue;
+    if (lm.loop_state == LoopState::kReturned && lm.confirmed) ++stats.returned;
+    if ((lm.position() - pose.position()).squaredNorm() > reach * reach) continue;
+    const bool seen = observed.count(lm.id) > 0;
+    const bool in_view = in_field_of_view(pose, lm.position());
+
+    // a landmark missed more often than seen is clutter, and so is one never confirmed: drop it
+    const bool missed_too_often = in_view && !seen && ++lm.misses > lm.sightings;
+    const bool stale =
+        !lm.confirmed && travel_m_ - lm.first_travel_m > config_.tentative_max_travel_m;
+    if ((missed_too_often || stale) && !lm.fixed) {
+      remove_landmark(lm);
+      continue;
+    }
+
+    // the loop state machine
+    const double since_first_m = travel_m_ - lm.first_travel_m;
+    const double heading_change = core::normalize_angle(pose.yaw - lm.first_heading_rad);
+    const LoopState before = lm.loop_state;
+    lm.loop_state = next_loop_state(config_.loop_closure, lm.loop_state, in_view, seen,
+                                    since_first_m, heading_change);
+    if (lm.confirmed && before != LoopState::kReturned && lm.loop_state == LoopState::kReturned)
+      ++stats.returned;
+
+    // old landmarks seen now: returned ones, and the big orange cue
+    if (!seen || !lm.confirmed || since_first_m < config_.loop_closure.returned_min_travel_m)
+      continue;
+    ++stats.old_matched;
+    if (lm.loop_state == LoopState::kReturned) ++stats.old_matched_returned;
+    if (voted_class(lm.class_votes) == core::ConeClass::kOrangeBig &&
+        std::abs(heading_change) <= config_.loop_closure.big_orange_heading_rad) {
+      stats.big_orange_returned = true;
+    }
+  }
+
+  return stats;
+}
+
+void GraphSlam::close_loop() {
+  // the whole graph: every pose but the gauge, every landmark, every edge
+  ceres::Problem problem(problem_options());
+  for (size_t i = 1; i < poses_.size(); ++i) {
+    PoseNode& node = poses_[i];
+    PoseNode& previous = poses_[i - 1];
+    problem.AddResidualBlock(node.odometry.get(), nullptr, previous.x.data(), node.x.data());
+    if (node.icr)
+      problem.AddResidualBlock(node.icr.get(), nullptr, previous.x.data(), node.x.data());
+  }
+  problem.SetParameterBlockConstant(poses_.front().x.data());
+  for (ObservationEdge& edge : edges_) {
+    Landmark& lm = landmarks_[edge.landmark];
+    if (lm.removed) continue;
+    problem.AddResidualBlock(edge.cost.get(), huber_.get(), poses_[edge.pose].x.data(),
+                             lm.x.data());
+    if (lm.fixed) problem.SetParameterBlockConstant(lm.x.data());
+  }
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options(config_.global_iterations, true), &problem, &summary);
+  ++loop_closures_;
+
+  // the map is final: tentative landmarks go, the rest are fixed, and we localise from now on
+  if (!config_.localise_after_loop_closure) return;
+  for (Landmark& lm : landmarks_) {
+    if (!lm.confirmed) remove_landmark(lm);
+    lm.fixed = true;
+  }
+  phase_ = core::SlamPhase::kLocalisation;
+  map_complete_ = true;
+}
+
+core::Estimate GraphSlam::estimate() const {
+  core::Estimate e;
+  e.stamp = poses_.back().stamp;
+  e.pose = poses_.back().pose();
+  e.speed_mps = speed_mps_;
+  e.yaw_rate_rps = yaw_rate_rps_;
+  // the confirmed landmarks with their voted class and EKF covariance
+  for (const Landmark& lm : landmarks_) {
+    if (lm.removed || !lm.confirmed) continue;
+    e.map.push_back({lm.id, voted_class(lm.class_votes), lm.position(), lm.covariance});
+  }
+  e.phase = phase_;
+  e.map_complete = map_complete_;
+  return e;
+}
+
+std::vector<core::Pose2> GraphSlam::trajectory() const {
+  std::vector<core::Pose2> out;
+  out.reserve(poses_.size());
+  for (const PoseNode& node : poses_) out.push_back(node.pose());
+  return out;
+}
+
+std::vector<core::TimeUs> GraphSlam::trajectory_stamps() const {
+  std::vector<core::TimeUs> out;
+  out.reserve(poses_.size());
+  for (const PoseNode& node : poses_) out.push_back(node.stamp);
+  return out;
+}
+
+}  // namespace conesim::slam

@@ -1,0 +1,167 @@
+#pragma once
+// GraphSLAM on Ceres after the FST Lisboa and RaceUp theses: a pose node per observation batch,
+// odometry and ICR edges between consecutive poses, landmark nodes with observation edges, the
+// gauge fixed at the start pose; landmarks refined by a per-landmark EKF between optimisations;
+// a sliding window optimised every batch and the whole graph once the loop closes, after which
+// the map is fixed and the backend localises only.
+
+#include <array>
+#include <deque>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "slam/association/ml_association.hpp"
+#include "slam/backend.hpp"
+#include "slam/loop_closure.hpp"
+
+namespace ceres {
+class CostFunction;
+class LossFunction;
+}  // namespace ceres
+
+namespace conesim::slam {
+
+/// GraphSLAM parameters.
+struct GraphSlamConfig {
+  AssociationConfig association;
+  LoopClosureConfig loop_closure;
+
+  /// The cone sensor's field of view (for the landmark statistics): its mount ahead of the rear
+  /// axle, range limits and opening angle. A landmark counts as missed only when predicted at
+  /// least fov_margin_m inside this view.
+  double sensor_x_m = 2.1;
+  double min_range_m = 1.0;
+  double max_range_m = 15.0;
+  double fov_deg = 180.0;
+  double fov_margin_m = 2.0;
+
+  /// A tentative landmark joins the map after this many sightings, and is dropped when it has
+  /// not by this distance driven since its first sighting, m.
+  int confirm_sightings = 3;
+  double tentative_max_travel_m = 20.0;
+  /// Poses optimised every batch (older ones are held fixed).
+  int window_poses = 8;
+  /// Solver iterations for the window, the global optimisation and localisation.
+  int window_iterations = 4;
+  int global_iterations = 30;
+  int localisation_iterations = 4;
+  /// Sigma of the ICR edge's lateral residual, m (0 disables the edge).
+  double icr_sigma_m = 0.05;
+  /// Huber threshold of observation edges, in whitened units (sigmas).
+  double observation_huber = 3.0;
+  /// Variance growth of a landmark's position relative to the car per metre driven since it was
+  /// last seen (the drift the association allows for on returning), m^2 per m, and its cap.
+  double drift_variance_m2_per_m = 0.002;
+  double max_drift_variance_m2 = 1.0;
+  /// Map the first loop and then localise on it (trackdrive); false keeps mapping.
+  bool localise_after_loop_closure = true;
+
+  /// Empty when usable, otherwise "graph_slam.key: what was expected".
+  std::string validate() const;
+};
+
+/// The GraphSLAM backend.
+class GraphSlam : public Backend {
+ public:
+  explicit GraphSlam(const GraphSlamConfig& config = {});
+  ~GraphSlam() override;
+
+  void reset(const core::Pose2& initial_pose, core::TimeUs stamp) override;
+  void set_prior_map(const std::vector<core::MapCone>& map) override;
+  void process(const SlamInput& input) override;
+  core::Estimate estimate() const override;
+  const std::vector<Association>& last_associations() const override { return associations_; }
+  int loop_closures() const override { return loop_closures_; }
+  std::string name() const override { return "graph"; }
+
+  /// The whole estimated trajectory, one pose per processed batch (the poses of the pose nodes,
+  /// smoothed by the optimisations).
+  std::vector<core::Pose2> trajectory() const;
+  /// Stamps of the trajectory's poses.
+  std::vector<core::TimeUs> trajectory_stamps() const;
+  /// Landmarks ever created, tentative and removed ones included (ids are 0..count-1).
+  int landmark_count() const { return static_cast<int>(landmarks_.size()); }
+
+ private:
+  // a pose node with the edges that lead into it from the previous pose
+  struct PoseNode {
+    core::TimeUs stamp = 0;
+    std::array<double, 3> x{};
+    double travel_m = 0.0;
+    std::unique_ptr<ceres::CostFunction> odometry;
+    std::unique_ptr<ceres::CostFunction> icr;
+    /// Observation edges from this pose.
+    std::vector<int> edges;
+
+    core::Pose2 pose() const { return {x[0], x[1], x[2]}; }
+  };
+
+  // a landmark node with its EKF covariance, class votes, statistics and loop state
+  struct Landmark {
+    int id = 0;
+    std::array<double, 2> x{};
+    Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity();
+    std::array<int, 5> class_votes{};
+    int track_id = -1;
+    int sightings = 0;
+    int misses = 0;
+    bool confirmed = false;
+    bool removed = false;
+    bool fixed = false;
+    LoopState loop_state = LoopState::kInView;
+    double first_travel_m = 0.0;
+    double first_heading_rad = 0.0;
+    double last_seen_travel_m = 0.0;
+    /// Observation edges to this landmark.
+    std::vector<int> edges;
+
+    core::Vec2 position() const { return {x[0], x[1]}; }
+  };
+
+  // a landmark seen from a pose
+  struct ObservationEdge {
+    int pose = 0;
+    int landmark = 0;
+    std::unique_ptr<ceres::CostFunction> cost;
+  };
+  /// An observation of the fixed map in localisation, used for one batch only.
+  struct LocalisationTerm {
+    std::unique_ptr<ceres::CostFunction> cost;
+    int landmark = 0;
+  };
+
+  // the recipe's steps
+  void predict(const OdometryDelta& odometry);
+  void associate_batch(const core::ConeObservations& observations);
+  void update(const core::ConeObservations& observations);
+  void optimise_window();
+  void localise();
+  LoopClosureStats update_landmark_statistics();
+  void close_loop();
+  std::vector<LandmarkCandidate> candidates() const;
+
+  // helpers
+  bool in_field_of_view(const core::Pose2& pose, const core::Vec2& landmark) const;
+  void add_observation_edge(int pose, int landmark, const core::ConeObservation& observation);
+  void remove_landmark(Landmark& landmark);
+
+  GraphSlamConfig config_;
+  std::deque<PoseNode> poses_;
+  std::deque<Landmark> landmarks_;
+  std::deque<ObservationEdge> edges_;
+  std::vector<LocalisationTerm> localisation_terms_;
+  std::unique_ptr<ceres::LossFunction> huber_;
+  std::vector<Association> associations_;
+  core::SlamPhase phase_ = core::SlamPhase::kMapping;
+  bool map_complete_ = false;
+  int loop_closures_ = 0;
+  /// Covariance of the newest pose, for the association gate: grown by the odometry, shrunk by
+  /// the matched observations.
+  Eigen::Matrix3d pose_covariance_ = Eigen::Matrix3d::Zero();
+  double travel_m_ = 0.0;
+  double speed_mps_ = 0.0;
+  double yaw_rate_rps_ = 0.0;
+};
+
+}  // namespace conesim::slam

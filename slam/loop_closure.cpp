@@ -1,0 +1,56 @@
+#include "slam/loop_closure.hpp"
+
+#include <cmath>
+#include <sstream>
+
+namespace conesim::slam {
+
+std::string LoopClosureConfig::validate() const {
+  std::ostringstream s;
+  if (!(min_travel_m >= 0.0))
+    s << "loop_closure.min_travel_m: expected >= 0";
+  else if (!(returned_min_travel_m >= 0.0))
+    s << "loop_closure.returned_min_travel_m: expected >= 0";
+  else if (!(heading_tolerance_rad > 0.0 && heading_tolerance_rad <= M_PI))
+    s << "loop_closure.heading_tolerance_rad: expected in (0, pi]";
+  else if (min_returned < 1)
+    s << "loop_closure.min_returned: expected >= 1";
+  else if (!(returned_fraction >= 0.0 && returned_fraction <= 1.0))
+    s << "loop_closure.returned_fraction: expected in [0, 1]";
+  else if (big_orange_min_returned < 0)
+    s << "loop_closure.big_orange_min_returned: expected >= 0";
+  return s.str();
+}
+
+LoopState next_loop_state(const LoopClosureConfig& config, LoopState state, bool in_view,
+                          bool observed, double travel_since_first_m, double heading_change_rad) {
+  switch (state) {
+    case LoopState::kInView:
+      // leaves the view when it is neither predicted in it nor seen
+      return in_view || observed ? LoopState::kInView : LoopState::kLeftView;
+    case LoopState::kLeftView:
+      // returns when seen again long after its first sighting, from the same direction
+      if (observed && travel_since_first_m >= config.returned_min_travel_m &&
+          std::abs(heading_change_rad) <= config.heading_tolerance_rad) {
+        return LoopState::kReturned;
+      }
+      return LoopState::kLeftView;
+    case LoopState::kReturned:
+      return LoopState::kReturned;
+  }
+  return state;
+}
+
+bool loop_closed(const LoopClosureConfig& config, const LoopClosureStats& stats) {
+  // never before a lap can have been driven
+  if (stats.travel_m < config.min_travel_m) return false;
+  // the statistics: enough returned landmarks, and the old ones in view are mostly returned
+  const bool consistent = stats.old_matched > 0 && stats.old_matched_returned >=
+                                                       config.returned_fraction * stats.old_matched;
+  if (stats.returned >= config.min_returned && consistent) return true;
+  // the big orange cue, backed by a few returned landmarks
+  return stats.big_orange_returned && stats.returned >= config.big_orange_min_returned &&
+         consistent;
+}
+
+}  // namespace conesim::slam

@@ -1,0 +1,69 @@
+#pragma once
+// Loop closure detection after the FST Lisboa thesis: each landmark runs a small state machine
+// (in view, left view, returned), and the loop is closed when enough landmarks first seen long
+// ago return into view from the same direction. The big orange start cones are a second cue,
+// guarded against the false triggers the RaceUp thesis describes (orange cones seen from the
+// wrong place or direction, or before a lap can have been driven).
+
+#include <string>
+
+namespace conesim::slam {
+
+/// Where a landmark stands in the loop closure state machine.
+enum class LoopState {
+  /// Seen and still in the field of view since it was created.
+  kInView,
+  /// Has left the field of view.
+  kLeftView,
+  /// Seen again after leaving the view, long after its first sighting, from a similar heading.
+  kReturned,
+};
+
+/// Loop closure parameters.
+struct LoopClosureConfig {
+  /// No loop before this distance has been driven, m.
+  double min_travel_m = 100.0;
+  /// A landmark returns only when first seen at least this far back along the path, m.
+  double returned_min_travel_m = 50.0;
+  /// And when the heading now is within this of the heading at its first sighting, rad.
+  double heading_tolerance_rad = 0.8;
+  /// Returned landmarks needed to close the loop on the statistics alone.
+  int min_returned = 8;
+  /// Of the old landmarks (first seen beyond returned_min_travel_m) matched in the current
+  /// batch, at least this fraction must be returned ones (the "loop closure factor", 0.8 in the
+  /// FST thesis).
+  double returned_fraction = 0.8;
+  /// The big orange cue: a re-observed big orange landmark with a heading within this of its
+  /// first sighting, plus this many returned landmarks, closes the loop.
+  double big_orange_heading_rad = 0.5;
+  int big_orange_min_returned = 3;
+
+  /// Empty when usable, otherwise "loop_closure.key: what was expected".
+  std::string validate() const;
+};
+
+/// What a landmark's state becomes after one batch.
+/// in_view: predicted in the field of view; observed: matched in this batch;
+/// travel_since_first_m: path length since its first sighting; heading_change_rad: heading now
+/// minus heading at its first sighting (wrapped).
+LoopState next_loop_state(const LoopClosureConfig& config, LoopState state, bool in_view,
+                          bool observed, double travel_since_first_m, double heading_change_rad);
+
+/// The statistics of one batch that the decision rests on.
+struct LoopClosureStats {
+  /// Path length driven so far, m.
+  double travel_m = 0.0;
+  /// Landmarks in the returned state (all of them).
+  int returned = 0;
+  /// Old landmarks (first seen beyond returned_min_travel_m) matched in this batch, and how
+  /// many of them are returned.
+  int old_matched = 0;
+  int old_matched_returned = 0;
+  /// A big orange landmark first seen long ago was matched with a consistent heading.
+  bool big_orange_returned = false;
+};
+
+/// True when the loop has closed, by the returned-landmark statistics or by the big orange cue.
+bool loop_closed(const LoopClosureConfig& config, const LoopClosureStats& stats);
+
+}  // namespace conesim::slam

@@ -1,0 +1,107 @@
+// GraphSLAM end to end: two laps of a generated circuit with the default cone sensor and noisy
+// odometry; the map, the trajectory, the associations and the loop closure are scored against
+// the truth.
+
+#include "slam/backends/graph_slam.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+
+#include "slam_drive.hpp"
+#include "tracks/generator.hpp"
+
+namespace conesim::slam {
+namespace {
+
+void print(const char* what, const testing::DriveResult& r, double smoothed_ate_m) {
+  std::printf(
+      "%s: lap %.0f m, %d batches | map RMSE %.3f m (%d matched, %d spurious, %d missed) | "
+      "ATE online %.3f m (max %.3f, localisation phase %.3f), smoothed %.3f m, yaw %.4f rad | "
+      "DA %.2f %% (%d wrong, %d rejected) | loop closures %d at %.0f m | update median %.2f ms, "
+      "p99 %.2f ms, max %.1f ms (CPU: median %.2f ms, p99 %.2f ms)\n",
+      what, r.lap_m, r.batches, r.map_rmse_m, r.map_matched, r.map_spurious, r.map_missed,
+      r.ate_rmse_m, r.max_position_error_m, r.ate_localisation_rmse_m, smoothed_ate_m,
+      r.yaw_rmse_rad, 100.0 * r.da_correct_fraction, r.da_wrong, r.da_rejected, r.loop_closures,
+      r.loop_closure_travel_m, r.update_ms_median, r.update_ms_p99, r.update_ms_max,
+      r.update_cpu_ms_median, r.update_cpu_ms_p99);
+}
+
+TEST(GraphSlam, TwoLapsOfAGeneratedCircuitMapAndLocaliseWithinTargets) {
+  const tracks::Track track = tracks::generate_circuit(3);
+  GraphSlam slam;
+  testing::DriveParams params;
+  params.seed = 3;
+  params.trace = std::getenv("CONESIM_SLAM_TRACE") != nullptr;
+  const testing::DriveResult r = testing::drive(track, slam, params);
+  const double smoothed_ate_m =
+      testing::trajectory_rmse_m(slam.trajectory_stamps(), slam.trajectory(), r.truth);
+  print("graph seed 3", r, smoothed_ate_m);
+
+  // the map and the trajectory (online and smoothed) within the targets, with no alignment
+  EXPECT_LE(r.map_rmse_m, 0.15);
+  EXPECT_LE(r.ate_rmse_m, 0.15);
+  EXPECT_LE(smoothed_ate_m, 0.15);
+  EXPECT_LE(r.map_spurious, 2);
+  // associations
+  EXPECT_GE(r.da_correct_fraction, 0.99);
+  // exactly one loop closure, near the end of the first lap, then localisation
+  EXPECT_EQ(r.loop_closures, 1);
+  EXPECT_GT(r.loop_closure_travel_m, 0.8 * r.lap_m);
+  EXPECT_LT(r.loop_closure_travel_m, 1.3 * r.lap_m);
+  EXPECT_TRUE(r.localising_at_end);
+}
+
+TEST(GraphSlam, LocalisesOnAPriorMapWithoutChangingIt) {
+  // the known layout (as for skidpad) given as the map: localisation from the first batch
+  const tracks::Track track = tracks::generate_circuit(5);
+  std::vector<core::MapCone> prior;
+  for (const tracks::Cone& cone : track.cones) {
+    prior.push_back({cone.id, cone.cls, cone.position, Eigen::Matrix2d::Identity() * 1e-4});
+  }
+  GraphSlam slam;
+  testing::DriveParams params;
+  params.seed = 5;
+  params.laps = 1.0;
+  params.prior_map = prior;
+  const testing::DriveResult r = testing::drive(track, slam, params);
+  print("graph prior map seed 5", r,
+        testing::trajectory_rmse_m(slam.trajectory_stamps(), slam.trajectory(), r.truth));
+
+  // the pose follows the car, the map is the given one, nothing is added, no loop is closed
+  EXPECT_LE(r.ate_rmse_m, 0.10);
+  EXPECT_LE(r.map_rmse_m, 1e-9);
+  EXPECT_EQ(r.map_matched, static_cast<int>(track.cones.size()));
+  EXPECT_GE(r.da_correct_fraction, 0.99);
+  EXPECT_EQ(slam.landmark_count(), static_cast<int>(track.cones.size()));
+  EXPECT_EQ(r.loop_closures, 0);
+  EXPECT_TRUE(r.localising_at_end);
+  EXPECT_TRUE(slam.estimate().map_complete);
+}
+
+TEST(GraphSlam, SameInputGivesTheSameEstimate) {
+  // decision 2: same scenario and seed, identical results
+  const tracks::Track track = tracks::generate_circuit(2);
+  testing::DriveParams params;
+  params.laps = 0.3;
+  GraphSlam a, b;
+  testing::drive(track, a, params);
+  testing::drive(track, b, params);
+  const core::Estimate ea = a.estimate(), eb = b.estimate();
+  EXPECT_EQ(ea.pose.x, eb.pose.x);
+  EXPECT_EQ(ea.pose.y, eb.pose.y);
+  EXPECT_EQ(ea.pose.yaw, eb.pose.yaw);
+  ASSERT_EQ(ea.map.size(), eb.map.size());
+  for (size_t i = 0; i < ea.map.size(); ++i) EXPECT_EQ(ea.map[i].position, eb.map[i].position);
+}
+
+TEST(GraphSlamConfig, ValidateNamesTheBadKey) {
+  GraphSlamConfig c;
+  EXPECT_EQ(c.validate(), "");
+  c.window_poses = 0;
+  EXPECT_NE(c.validate().find("graph_slam.window_poses"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace conesim::slam
