@@ -115,6 +115,10 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     // skidpad is driven from its known layout
     for (const tracks::Cone& c : track.cones) prior_map.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
   }
+  SensorRig rig(s, track, car, options.dump, options.out_dir);
+  const bool noisy_perception = s.perception == "cone_sensor";
+  core::ConeObservations latest_detections;
+  core::Pose2 latest_capture_pose;
   control::Driver driver(s.event, s.driver, {vp.wheelbase_m, vp.max_steer_rad, vp.front_overhang_from_rear_axle_m}, prior_map);
 
   // the schedule on the integer clock
@@ -146,9 +150,27 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
         dnf_override = "physics diverged";
         break;
       }
+      // perception: perfect cones in view, or the cone sensor's latest delivered frame
+      core::ConeObservations obs;
       std::vector<int> ids;
-      core::ConeObservations obs = perceive_ground_truth(track, truth.pose, s.sensors, is_knocked, &ids);
-      obs.stamp = t;
+      if (noisy_perception) {
+        while (auto d = rig.take_detections(t)) {
+          latest_detections = std::move(d->observations);
+          latest_capture_pose = d->capture_pose;
+          for (int id : d->labels.cone_id)
+            if (id >= 0) ids.push_back(id);
+        }
+        // detections were taken at their capture pose: express them in today's vehicle frame
+        obs.stamp = latest_detections.stamp;
+        for (core::ConeObservation o : latest_detections.cones) {
+          o.position = truth.pose.inverse_transform(latest_capture_pose.transform(o.position));
+          obs.cones.push_back(o);
+        }
+      } else {
+        obs = perceive_ground_truth(track, truth.pose, s.sensors, is_knocked, &ids);
+        obs.stamp = t;
+      }
+      // without SLAM the map is an oracle: the true position of every cone detected once
       for (size_t i = 0; i < ids.size(); ++i) {
         if (seen[ids[i]]) continue;
         seen[ids[i]] = 1;
@@ -183,6 +205,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     car.step(command);
     t += step_us;
     referee.update(t, car.truth());
+    rig.step(t, car, referee);
     if (t >= hard_stop_us) {
       dnf_override = "no verdict within the event's time limit";
       break;
@@ -232,6 +255,11 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       {"passed", result.passed},
       {"pass_failures", result.failures},
       {"slam", nlohmann::json::object()},
+      {"sensors",
+       {{"lidar_scans", rig.stats().lidar_scans},
+        {"lidar_points", rig.stats().lidar_points},
+        {"camera_frames", rig.stats().camera_frames},
+        {"cone_sensor_frames", rig.stats().cone_frames}}},
   };
   result.metrics = m;
 

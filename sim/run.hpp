@@ -13,6 +13,7 @@
 #include "core/autonomy_types.hpp"
 #include "sim/referee.hpp"
 #include "sim/scenario.hpp"
+#include "sim/sensor_rig.hpp"
 #include "tracks/track.hpp"
 
 namespace conesim::sim {
@@ -34,6 +35,8 @@ struct RunOptions {
   std::function<void(const Progress&)> on_progress;
   /// Write the top-down PNG (needs gnuplot).
   bool plot = true;
+  /// Sensor data to write under images/ (dumping a sensor switches it on).
+  DumpOptions dump;
 };
 
 /// The outcome of a run.

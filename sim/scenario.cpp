@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "sensors/lidar_config.hpp"
 
 namespace conesim::sim {
 
@@ -322,9 +323,9 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
       {"perception",
        [&](const YAML::Node& n) {
          s.perception = read_string(n, top, "perception");
-         if (s.perception != "ground_truth")
+         if (s.perception != "ground_truth" && s.perception != "cone_sensor")
            throw InputError(fname, top.line(n),
-                            "perception: expected ground_truth (cone_sensor, lidar, stereo and "
+                            "perception: expected ground_truth or cone_sensor (lidar, stereo and "
                             "fused are not built yet), got '" + s.perception + "'");
        }},
       {"slam",
@@ -348,10 +349,74 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
       {"sensors",
        [&](const YAML::Node& n) {
          const Where w{fname, "sensors"};
-         read_section(n, w,
-                      {number("driver_rate_hz", s.sensors.driver_rate_hz, w),
-                       number("cone_range_m", s.sensors.cone_range_m, w),
-                       number("cone_fov_deg", s.sensors.cone_fov_deg, w)});
+         auto& ss = s.sensors;
+         read_section(
+             n, w,
+             {number("driver_rate_hz", ss.driver_rate_hz, w),
+              number("cone_range_m", ss.cone_range_m, w),
+              number("cone_fov_deg", ss.cone_fov_deg, w),
+              {"cone_sensor",
+               [&](const YAML::Node& v) {
+                 const Where c{fname, "sensors.cone_sensor"};
+                 auto& cs = ss.cone_sensor;
+                 read_section(v, c,
+                              {number("rate_hz", cs.timing.rate_hz, c),
+                               number("latency_s", cs.timing.latency_s, c),
+                               number("mount_x_m", cs.mount_x_m, c),
+                               number("min_range_m", cs.min_range_m, c),
+                               number("max_range_m", cs.max_range_m, c),
+                               number("fov_deg", cs.fov_deg, c),
+                               number("range_sigma_m", cs.range_sigma_m, c),
+                               number("bearing_sigma_rad", cs.bearing_sigma_rad, c),
+                               number("colour_range_m", cs.colour_range_m, c),
+                               number("colour_probability", cs.colour_probability, c),
+                               number("colour_confusion_probability",
+                                      cs.colour_confusion_probability, c),
+                               number("detection_probability_near", cs.detection_probability_near, c),
+                               number("detection_probability_far", cs.detection_probability_far, c),
+                               number("detection_falloff_start_m", cs.detection_falloff_start_m, c),
+                               number("false_positives_per_frame", cs.false_positives_per_frame, c)});
+               }},
+              {"lidar",
+               [&](const YAML::Node& v) {
+                 const Where c{fname, "sensors.lidar"};
+                 read_section(v, c,
+                              {{"enabled",
+                                [&](const YAML::Node& x) {
+                                  ss.lidar_enabled = read_bool(x, c, "enabled");
+                                }},
+                               {"model",
+                                [&](const YAML::Node& x) {
+                                  ss.lidar_model = read_string(x, c, "model");
+                                  if (!sensors::lidar_preset(ss.lidar_model))
+                                    throw InputError(fname, c.line(x),
+                                                     "sensors.lidar.model: expected vlp16, "
+                                                     "vlp32c or os1-64");
+                                }},
+                               {"mount", [&](const YAML::Node& x) {
+                                  ss.lidar_mount = read_string(x, c, "mount");
+                                  if (!sensors::lidar_mount_preset(ss.lidar_mount))
+                                    throw InputError(fname, c.line(x),
+                                                     "sensors.lidar.mount: expected front_wing "
+                                                     "or main_hoop");
+                                }}});
+               }},
+              {"camera", [&](const YAML::Node& v) {
+                 const Where c{fname, "sensors.camera"};
+                 auto& cam = ss.camera;
+                 read_section(
+                     v, c,
+                     {{"enabled",
+                       [&](const YAML::Node& x) { ss.camera_enabled = read_bool(x, c, "enabled"); }},
+                      {"depth",
+                       [&](const YAML::Node& x) { ss.camera_depth = read_bool(x, c, "depth"); }},
+                      number("rate_hz", ss.camera_rate_hz, c),
+                      integer("width_px", cam.width_px, c), integer("height_px", cam.height_px, c),
+                      number("horizontal_fov_deg", cam.horizontal_fov_deg, c),
+                      number("baseline_m", cam.baseline_m, c),
+                      number("mount_x_m", cam.mount_x_m, c), number("mount_z_m", cam.mount_z_m, c),
+                      number("pitch_down_deg", cam.pitch_down_deg, c)});
+               }}});
        }},
       {"pass",
        [&](const YAML::Node& n) {
@@ -389,6 +454,16 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
     throw InputError(fname, "sensors.cone_range_m", "expected a range in (0, 200] m");
   if (!(s.sensors.cone_fov_deg > 0.0 && s.sensors.cone_fov_deg <= 360.0))
     throw InputError(fname, "sensors.cone_fov_deg", "expected a field of view in (0, 360] degrees");
+  if (const std::string e = s.sensors.cone_sensor.validate(); !e.empty())
+    throw InputError(fname, "sensors", e);
+  if (const std::string e = s.sensors.camera.validate(); !e.empty())
+    throw InputError(fname, "sensors.camera", e);
+  {
+    const double period_ms = 1000.0 / s.sensors.camera_rate_hz;
+    if (!(s.sensors.camera_rate_hz > 0.0) || std::abs(period_ms - std::round(period_ms)) > 1e-9)
+      throw InputError(fname, "sensors.camera.rate_hz",
+                       "expected a rate whose period is a whole number of milliseconds");
+  }
   if (s.pass.max_cones_hit < 0 || s.pass.max_off_course < 0 || s.pass.max_final_time_s < 0.0)
     throw InputError(fname, "pass", "expected limits >= 0");
   if (s.track.file && s.track.generate_seed)

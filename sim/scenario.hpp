@@ -10,6 +10,8 @@
 
 #include "control/driver.hpp"
 #include "core/event.hpp"
+#include "sensors/cone_sensor.hpp"
+#include "sensors/stereo_camera.hpp"
 #include "sim/referee.hpp"
 #include "vehicle_models/vehicle_params.hpp"
 
@@ -31,6 +33,18 @@ struct SensorSettings {
   /// Perfect perception: cones within this range and field of view are seen.
   double cone_range_m = 20.0;
   double cone_fov_deg = 200.0;
+  /// The detection-level cone sensor (`perception: cone_sensor`).
+  sensors::ConeSensorConfig cone_sensor;
+  /// The LiDAR sweeps while the car drives when enabled (or dumped).
+  bool lidar_enabled = false;
+  /// A preset of sensors::lidar_preset (vlp16, vlp32c, os1-64) and a mount preset.
+  std::string lidar_model = "vlp16";
+  std::string lidar_mount = "front_wing";
+  /// The stereo camera renders at camera_rate_hz when enabled (or dumped).
+  bool camera_enabled = false;
+  double camera_rate_hz = 10.0;
+  bool camera_depth = false;
+  sensors::StereoCameraConfig camera;
 };
 
 /// What a run must achieve to pass.
@@ -51,7 +65,7 @@ struct Scenario {
   std::string vehicle_source = "default";
   vehicle_models::VehicleParams vehicle;
   uint64_t seed = 1;
-  /// ground_truth (later: cone_sensor, lidar, stereo, fused).
+  /// ground_truth or cone_sensor (later: lidar, stereo, fused).
   std::string perception = "ground_truth";
   /// none (later: graph, ekf, fastslam1, fastslam2).
   std::string slam = "none";

@@ -134,6 +134,15 @@ void add_run_command(CLI::App& app, int& status) {
   cmd->add_option("--out", *out, "Run directory (default runs/<name>-<UTC stamp>)");
   cmd->add_option("--set", *sets, "Override a scenario value: key.path=value (repeatable)");
   cmd->add_flag("--no-plot", *no_plot, "Skip the PNG (no gnuplot run)");
+  auto dump = std::make_shared<std::vector<std::string>>();
+  auto dump_every = std::make_shared<int>(1);
+  cmd->add_option("--dump", *dump,
+                  "Write sensor data under images/: lidar, camera, detections (comma-separated; "
+                  "dumping a sensor switches it on)")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"lidar", "camera", "detections"}));
+  cmd->add_option("--dump-every", *dump_every, "Dump every Nth frame of each sensor")
+      ->check(CLI::Range(1, 1000000));
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;
     const fs::path file = sim::find_scenario(*scenario);
@@ -148,6 +157,8 @@ void add_run_command(CLI::App& app, int& status) {
 
     sim::RunOptions options;
     options.plot = !*no_plot;
+    options.dump.sensors = {dump->begin(), dump->end()};
+    options.dump.every = *dump_every;
     if (out->empty()) {
       options.out_dir = sim::make_run_dir("runs", s.name);
     } else {

@@ -1,0 +1,243 @@
+#include "sim/sensor_rig.hpp"
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+
+#include "sensors/png_writer.hpp"
+#include "sim/gnuplot.hpp"
+
+namespace conesim::sim {
+
+namespace fs = std::filesystem;
+using core::TimeUs;
+
+namespace {
+
+// independent noise streams per sensor, derived from the scenario seed
+constexpr uint64_t kConeSensorStream = 101;
+constexpr uint64_t kLidarStream = 102;
+
+std::string frame_name(int index, const char* ext) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "%06d.%s", index, ext);
+  return name;
+}
+
+nlohmann::json pose3_json(const core::Pose3& p) {
+  return {{"position", {p.position.x(), p.position.y(), p.position.z()}},
+          {"orientation_wxyz",
+           {p.orientation.w(), p.orientation.x(), p.orientation.y(), p.orientation.z()}}};
+}
+
+nlohmann::json pose2_json(const core::Pose2& p) {
+  return {{"x", p.x}, {"y", p.y}, {"yaw", p.yaw}};
+}
+
+void write_text(const fs::path& file, const std::string& text) {
+  std::ofstream out(file, std::ios::binary);
+  out << text;
+  if (!out) throw std::runtime_error(file.string() + ": cannot write");
+}
+
+// an ASCII PCD (v0.7) with the fields x y z intensity ring time label
+void write_pcd(const fs::path& file, const core::PointCloud& cloud,
+               const core::PointCloudLabels& labels) {
+  std::string text;
+  text.reserve(cloud.points.size() * 48 + 256);
+  const size_t n = cloud.points.size();
+  text += "# .PCD v0.7 - conesim LiDAR sweep (label: true cone id, -1 ground)\n";
+  text += "VERSION 0.7\nFIELDS x y z intensity ring time label\n";
+  text += "SIZE 4 4 4 4 2 4 4\nTYPE F F F F U F I\nCOUNT 1 1 1 1 1 1 1\n";
+  text += "WIDTH " + std::to_string(n) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\n";
+  text += "POINTS " + std::to_string(n) + "\nDATA ascii\n";
+  char row[160];
+  for (size_t i = 0; i < n; ++i) {
+    const auto& p = cloud.points[i];
+    std::snprintf(row, sizeof(row), "%.4f %.4f %.4f %.1f %u %.6f %d\n", p.x, p.y, p.z,
+                  p.intensity, static_cast<unsigned>(p.ring), p.time_offset_s, labels.cone_id[i]);
+    text += row;
+  }
+  write_text(file, text);
+}
+
+}  // namespace
+
+SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const VehicleSim& car,
+                     const DumpOptions& dump, const fs::path& run_dir)
+    : track_(track),
+      dump_(dump),
+      run_dir_(run_dir),
+      lidar_rng_(core::derive_seed(s.seed, kLidarStream)) {
+  // the cone sensor: the perception of `perception: cone_sensor`, or dumped
+  if (s.perception == "cone_sensor" || dump_.sensors.count("detections")) {
+    if (const std::string e = s.sensors.cone_sensor.validate(); !e.empty())
+      throw std::invalid_argument("sensors." + e);
+    cone_sensor_ = std::make_unique<sensors::ConeSensor>(
+        s.sensors.cone_sensor, core::derive_seed(s.seed, kConeSensorStream));
+    cone_period_us_ = s.sensors.cone_sensor.timing.period_us();
+    cone_latency_us_ = s.sensors.cone_sensor.timing.latency_us();
+  }
+
+  // the LiDAR sweeps from the first step on
+  if (s.sensors.lidar_enabled || dump_.sensors.count("lidar")) {
+    auto config = sensors::lidar_preset(s.sensors.lidar_model);
+    const auto mount = sensors::lidar_mount_preset(s.sensors.lidar_mount);
+    if (!config) throw std::invalid_argument("sensors.lidar.model: unknown model " + s.sensors.lidar_model);
+    if (!mount) throw std::invalid_argument("sensors.lidar.mount: unknown mount " + s.sensors.lidar_mount);
+    config->mount = *mount;
+    lidar_ = std::make_unique<sensors::Lidar>(*config, track);
+    poses_ = sensors::PoseHistory(2 * config->sweep_period_us());
+    poses_.push(0, car.vehicle_pose3());
+  }
+
+  // the stereo camera
+  if (s.sensors.camera_enabled || dump_.sensors.count("camera")) {
+    if (const std::string e = s.sensors.camera.validate(); !e.empty())
+      throw std::invalid_argument("sensors.camera." + e);
+    camera_ = std::make_unique<sensors::StereoCamera>(s.sensors.camera, car.model(), track);
+    camera_period_us_ = core::from_seconds(1.0 / s.sensors.camera_rate_hz);
+    with_depth_ = s.sensors.camera_depth;
+  }
+
+  // the dump folders
+  for (const std::string& name : dump_.sensors) {
+    if (name == "camera") {
+      fs::create_directories(run_dir_ / "images/camera/left");
+      fs::create_directories(run_dir_ / "images/camera/right");
+    } else {
+      fs::create_directories(run_dir_ / "images" / name);
+    }
+  }
+}
+
+SensorRig::~SensorRig() = default;
+
+void SensorRig::sync_knocked_cones(const Referee& referee) {
+  // a knocked cone leaves the LiDAR scene (the camera and cone sensor ask the referee)
+  const auto& hit = referee.result().cones_hit;
+  for (; knocked_seen_ < hit.size(); ++knocked_seen_)
+    if (lidar_) lidar_->set_cone_present(hit[knocked_seen_], false);
+}
+
+void SensorRig::step(TimeUs t, const VehicleSim& car, const Referee& referee) {
+  sync_knocked_cones(referee);
+  if (lidar_) {
+    poses_.push(t, car.vehicle_pose3());
+    if (t > lidar_->sweep_end(sweep_start_)) sweep_lidar(t);
+  }
+  if (camera_ && t % camera_period_us_ == 0) render_camera(t, car, referee);
+  if (cone_sensor_ && t % cone_period_us_ == 0) sense_cones(t, car, referee);
+}
+
+void SensorRig::sweep_lidar(TimeUs) {
+  using clock = std::chrono::steady_clock;
+  const auto start = clock::now();
+  const sensors::LidarScan scan = lidar_->sweep(sweep_start_, poses_, lidar_rng_);
+  stats_.lidar_ms_total += std::chrono::duration<double, std::milli>(clock::now() - start).count();
+  const int index = stats_.lidar_scans++;
+  stats_.lidar_points += static_cast<int64_t>(scan.cloud.points.size());
+  sweep_start_ += lidar_->config().sweep_period_us();
+
+  // the dump: PCD, sidecar and a top-down picture
+  if (!dump_.sensors.count("lidar") || index % dump_.every != 0) return;
+  const fs::path dir = run_dir_ / "images/lidar";
+  write_pcd(dir / frame_name(index, "pcd"), scan.cloud, scan.labels);
+  const nlohmann::json sidecar = {
+      {"stamp_us", scan.cloud.stamp},
+      {"sweep_period_us", lidar_->config().sweep_period_us()},
+      {"model", lidar_->config().model},
+      {"points", scan.cloud.points.size()},
+      {"sensor_in_vehicle", pose3_json(lidar_->config().mount)},
+      {"sensor_in_track_at_start", pose3_json(scan.labels.sensor_pose_start)},
+      {"sensor_in_track_at_end", pose3_json(scan.labels.sensor_pose_end)},
+      {"true_vehicle_pose_at_start", pose2_json(poses_.at(scan.cloud.stamp).planar())}};
+  write_text(dir / frame_name(index, "json"), sidecar.dump(2) + "\n");
+  if (dump_.lidar_png) {
+    PlotData cones{"cones", {}}, ground{"ground", {}};
+    for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+      const auto& p = scan.cloud.points[i];
+      if (std::hypot(p.x, p.y) > 30.0) continue;
+      (scan.labels.cone_id[i] >= 0 ? cones : ground).rows.push_back({p.x, p.y, p.intensity});
+    }
+    const std::string script =
+        "set title 'LiDAR sweep " + std::to_string(index) +
+        " (sensor frame, within 30 m; colour = intensity)'\n"
+        "set size ratio -1\nset xrange [-30:30]\nset yrange [-30:30]\nset grid\n"
+        "set palette defined (0 '#101060', 60 '#3060ff', 130 '#ffd000', 255 '#ffffff')\n"
+        "set cbrange [0:255]\nset xlabel 'x [m]'\nset ylabel 'y [m]'\n"
+        "plot $ground using 1:2 with dots lc rgb '#b0b0b0' title 'ground', "
+        "$cones using 1:2:3 with points pt 7 ps 0.4 palette title 'cone returns'\n";
+    if (cones.rows.empty()) cones.rows.push_back({0.0, 0.0, 0.0});
+    if (ground.rows.empty()) ground.rows.push_back({0.0, 0.0, 0.0});
+    render_png(script, {ground, cones}, dir / frame_name(index, "png"), 900, 900);
+  }
+}
+
+void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& referee) {
+  using clock = std::chrono::steady_clock;
+  const auto start = clock::now();
+  camera_->render(car.data(), car.vehicle_pose3(), t,
+                  [&referee](int id) { return referee.is_knocked(id); },
+                  with_depth_, frame_, frame_labels_);
+  stats_.camera_ms_total += std::chrono::duration<double, std::milli>(clock::now() - start).count();
+  const int index = stats_.camera_frames++;
+
+  // the dump: left and right PNG and a sidecar with the calibration and the true poses
+  if (!dump_.sensors.count("camera") || index % dump_.every != 0) return;
+  const fs::path dir = run_dir_ / "images/camera";
+  for (const auto& [side, image] : {std::pair{"left", &frame_.left}, {"right", &frame_.right}}) {
+    const std::string error = sensors::write_png((dir / side / frame_name(index, "png")).string(), *image);
+    if (!error.empty()) throw std::runtime_error(error);
+  }
+  const auto& k = frame_.intrinsics;
+  const nlohmann::json sidecar = {
+      {"stamp_us", t},
+      {"intrinsics",
+       {{"width_px", k.width_px}, {"height_px", k.height_px}, {"fx", k.fx}, {"fy", k.fy},
+        {"cx", k.cx}, {"cy", k.cy}}},
+      {"baseline_m", frame_.baseline_m},
+      {"left_in_vehicle", pose3_json(frame_.left_in_vehicle)},
+      {"right_in_vehicle", pose3_json(frame_.right_in_vehicle)},
+      {"left_in_track", pose3_json(frame_labels_.left_in_track)},
+      {"right_in_track", pose3_json(frame_labels_.right_in_track)},
+      {"true_vehicle_pose", pose2_json(car.truth().pose)},
+      {"camera_frame", "x right, y down, z forward (OpenCV)"}};
+  write_text(dir / frame_name(index, "json"), sidecar.dump(2) + "\n");
+}
+
+void SensorRig::sense_cones(TimeUs t, const VehicleSim& car, const Referee& referee) {
+  const core::Pose2 pose = car.truth().pose;
+  auto [obs, labels] = cone_sensor_->sample(track_, pose, t,
+                                            [&referee](int id) { return referee.is_knocked(id); });
+  const int index = stats_.cone_frames++;
+  if (dump_.sensors.count("detections") && index % dump_.every == 0) {
+    nlohmann::json cones = nlohmann::json::array();
+    for (size_t i = 0; i < obs.cones.size(); ++i) {
+      const auto& o = obs.cones[i];
+      cones.push_back({{"x", o.position.x()},
+                       {"y", o.position.y()},
+                       {"class", std::string(core::to_string(o.cls))},
+                       {"covariance", {o.covariance(0, 0), o.covariance(0, 1), o.covariance(1, 1)}},
+                       {"true_cone_id", labels.cone_id[i]}});
+    }
+    const nlohmann::json frame = {{"stamp_us", t},
+                                  {"delivered_us", t + cone_latency_us_},
+                                  {"true_vehicle_pose", pose2_json(pose)},
+                                  {"frame", "vehicle (rear axle centre), x forward, y left"},
+                                  {"cones", cones}};
+    write_text(run_dir_ / "images/detections" / frame_name(index, "json"), frame.dump(1) + "\n");
+  }
+  cone_queue_.push_back({t + cone_latency_us_, {std::move(obs), std::move(labels), pose}});
+}
+
+std::optional<DeliveredDetections> SensorRig::take_detections(TimeUs t) {
+  if (cone_queue_.empty() || cone_queue_.front().first > t) return std::nullopt;
+  DeliveredDetections d = std::move(cone_queue_.front().second);
+  cone_queue_.pop_front();
+  return d;
+}
+
+}  // namespace conesim::sim
