@@ -20,10 +20,11 @@ function(conesim_tests folder)
     target_compile_definitions(${target} PRIVATE
       CONESIM_TEST_DATA="${PROJECT_SOURCE_DIR}/tests/data"
       CONESIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
-    # files named *_slow_test.cpp run only with `./conesim test --all`
+    # files named *_slow_test.cpp run only with `./conesim test --all` (one label per test:
+    # gtest_discover_tests does not pass a list through PROPERTIES)
     set(labels ${folder})
     if(stem MATCHES "_slow_test$")
-      list(APPEND labels slow)
+      set(labels slow)
     endif()
     gtest_discover_tests(${target} TEST_PREFIX "${folder}." DISCOVERY_TIMEOUT 60
       PROPERTIES LABELS "${labels}" TIMEOUT 1800)

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
+#include "sim/bench.hpp"
 #include "sim/regress.hpp"
 #include "sim/run.hpp"
 #include "sim/scenario.hpp"
@@ -244,6 +245,19 @@ void add_vehicle_commands(CLI::App& app) {
   });
 }
 
+// `conesim bench sensors`
+void add_bench_commands(CLI::App& app) {
+  auto* bench = app.add_subcommand("bench", "Speed figures (medians; the machine's load shows)");
+  bench->require_subcommand(1);
+  auto* cmd = bench->add_subcommand(
+      "sensors", "LiDAR Mrays/s and ms per scan, ms per stereo pair, closed-loop real-time factor");
+  auto repeats = std::make_shared<int>(5);
+  auto no_loop = std::make_shared<bool>(false);
+  cmd->add_option("--repeats", *repeats, "Repetitions (scaled per figure)")->check(CLI::Range(1, 1000));
+  cmd->add_flag("--no-closed-loop", *no_loop, "Skip the two trackdrive runs");
+  cmd->callback([=] { std::cout << conesim::sim::bench_sensors(*repeats, !*no_loop).dump(2) << "\n"; });
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -255,6 +269,7 @@ int main(int argc, char** argv) {
   add_run_command(app, status);
   add_regress_command(app, status, argv[0]);
   add_vehicle_commands(app);
+  add_bench_commands(app);
 
   try {
     app.parse(argc, argv);

@@ -1,0 +1,105 @@
+#include "sim/bench.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <unistd.h>
+
+#include "sensors/lidar.hpp"
+#include "sensors/pose_history.hpp"
+#include "sensors/stereo_camera.hpp"
+#include "sim/run.hpp"
+#include "sim/scenario.hpp"
+#include "sim/track_commands.hpp"
+#include "sim/vehicle_sim.hpp"
+
+namespace conesim::sim {
+
+namespace {
+
+using clock = std::chrono::steady_clock;
+
+double ms_since(clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(clock::now() - start).count();
+}
+
+// median, 10th and 90th percentile of a sample
+nlohmann::json spread(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  auto at = [&v](double q) { return v[static_cast<size_t>(q * (v.size() - 1) + 0.5)]; };
+  return {{"median", at(0.5)}, {"p10", at(0.1)}, {"p90", at(0.9)}, {"n", v.size()}};
+}
+
+// a run of a shipped scenario into a scratch folder; returns sim seconds per wall second
+double closed_loop_rtf(const std::string& name, const std::vector<std::string>& sets) {
+  const Scenario s = load_scenario(find_scenario(name), sets);
+  RunOptions options;
+  options.out_dir = std::filesystem::temp_directory_path() /
+                    ("conesim-bench-" + std::to_string(::getpid()));
+  options.plot = false;
+  const RunResult r = run_scenario(s, scenario_track(s), options);
+  std::filesystem::remove_all(options.out_dir);
+  return r.sim_time_s / r.wall_time_s;
+}
+
+}  // namespace
+
+nlohmann::json bench_sensors(int repeats, bool closed_loop) {
+  const tracks::Track track = make_event_track(core::EventType::kTrackdrive, 1);
+  nlohmann::json out;
+
+  // LiDAR: sweeps of a car moving at 10 m/s along the start straight
+  {
+    sensors::Lidar lidar(sensors::LidarConfig{}, track);
+    sensors::PoseHistory poses(2 * core::kUsPerSecond);
+    for (core::TimeUs t = 0; t <= 200'000; t += 1000) {
+      core::Pose3 p;
+      p.position = {track.start.x + 10.0 * core::to_seconds(t), track.start.y, 0.0};
+      poses.push(t, p);
+    }
+    core::Rng rng(1);
+    std::vector<double> ms, mrays;
+    lidar.sweep(0, poses, rng);  // warm-up
+    for (int i = 0; i < std::max(repeats, 5) * 4; ++i) {
+      const auto start = clock::now();
+      const auto scan = lidar.sweep(0, poses, rng);
+      const double elapsed = ms_since(start);
+      ms.push_back(elapsed);
+      mrays.push_back(static_cast<double>(scan.stats.rays) / (elapsed * 1e3));
+    }
+    out["lidar_scan_ms"] = spread(ms)["median"];
+    out["lidar_mrays_per_s"] = spread(mrays)["median"];
+    out["lidar_scan_ms_spread"] = spread(ms);
+  }
+
+  // stereo: two 640x480 frames of the car at the start
+  {
+    VehicleSim car(vehicle_models::VehicleParams{}, track.start.compose({-2.25, 0.0, 0.0}));
+    sensors::StereoCamera camera(sensors::StereoCameraConfig{}, car.model(), track);
+    core::StereoFrame frame;
+    core::StereoLabels labels;
+    camera.render(car.data(), car.vehicle_pose3(), 0, {}, false, frame, labels);  // warm-up
+    std::vector<double> ms;
+    for (int i = 0; i < std::max(repeats, 5) * 2; ++i) {
+      const auto start = clock::now();
+      camera.render(car.data(), car.vehicle_pose3(), 0, {}, false, frame, labels);
+      ms.push_back(ms_since(start));
+    }
+    out["stereo_pair_ms"] = spread(ms)["median"];
+    out["stereo_pair_ms_spread"] = spread(ms);
+  }
+
+  // the closed loop: trackdrive (ten laps) without and with the LiDAR at 10 Hz
+  if (closed_loop) {
+    out["closed_loop_rtf"] = closed_loop_rtf("trackdrive", {"seed=1"});
+    out["closed_loop_lidar_rtf"] =
+        closed_loop_rtf("trackdrive", {"seed=1", "sensors.lidar.enabled=true"});
+  }
+  out["targets"] = {{"lidar_mrays_per_s", ">= 25"},
+                    {"stereo_pair_ms", "<= 25"},
+                    {"closed_loop_lidar_rtf", ">= 30"},
+                    {"closed_loop_rtf", ">= 30"}};
+  return out;
+}
+
+}  // namespace conesim::sim
