@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "control/driver.hpp"
+#include "sim/slam_runner.hpp"
 #include "sim/track_commands.hpp"
 #include "sim/vehicle_sim.hpp"
 #include "tracks/io.hpp"
@@ -117,6 +118,9 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   }
   SensorRig rig(s, track, car, options.dump, options.out_dir);
   const bool noisy_perception = s.perception == "cone_sensor";
+  std::unique_ptr<SlamRunner> slam;
+  if (s.slam != "none") slam = std::make_unique<SlamRunner>(s, track, car);
+  core::Pose2 driving_pose = car.truth().pose;
   core::ConeObservations latest_detections;
   core::Pose2 latest_capture_pose;
   control::Driver driver(s.event, s.driver, {vp.wheelbase_m, vp.max_steer_rad, vp.front_overhang_from_rear_axle_m}, prior_map);
@@ -125,7 +129,8 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   const TimeUs step_us = core::from_seconds(car.timestep_s());
   const TimeUs driver_period_us = core::from_seconds(1.0 / s.sensors.driver_rate_hz);
   const TimeUs trajectory_period_us = core::from_seconds(1.0 / kTrajectoryRateHz);
-  const TimeUs hard_stop_us = core::from_seconds(hard_stop_s(s));
+  const TimeUs hard_stop_us = core::from_seconds(hard_stop_s(s) + s.start_delay_s);
+  const TimeUs start_delay_us = core::from_seconds(s.start_delay_s);
   const int laps_target = s.event == core::EventType::kTrackdrive ? s.driver.trackdrive_laps
                           : s.event == core::EventType::kSkidpad  ? 4
                                                                   : 1;
@@ -135,7 +140,8 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   std::vector<char> seen(static_cast<size_t>(track.next_id()), 0);
   std::vector<core::MapCone> map;
   std::vector<core::Vec2> driven;
-  std::string trajectory = "t_s,x_m,y_m,yaw_rad,speed_mps,steer_rad,accel_cmd_mps2\n";
+  std::string trajectory =
+      "t_s,x_m,y_m,yaw_rad,speed_mps,steer_rad,accel_cmd_mps2,est_x_m,est_y_m,est_yaw_rad\n";
   auto is_knocked = [&referee](int id) { return referee.is_knocked(id); };
 
   TimeUs t = 0;
@@ -153,37 +159,47 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       // perception: perfect cones in view, or the cone sensor's latest delivered frame
       core::ConeObservations obs;
       std::vector<int> ids;
-      if (noisy_perception) {
-        while (auto d = rig.take_detections(t)) {
-          latest_detections = std::move(d->observations);
-          latest_capture_pose = d->capture_pose;
-          for (int id : d->labels.cone_id)
-            if (id >= 0) ids.push_back(id);
-        }
-        // detections were taken at their capture pose: express them in today's vehicle frame
-        obs.stamp = latest_detections.stamp;
-        for (core::ConeObservation o : latest_detections.cones) {
-          o.position = truth.pose.inverse_transform(latest_capture_pose.transform(o.position));
-          obs.cones.push_back(o);
-        }
-      } else {
-        obs = perceive_ground_truth(track, truth.pose, s.sensors, is_knocked, &ids);
-        obs.stamp = t;
-      }
-      // without SLAM the map is an oracle: the true position of every cone detected once
-      for (size_t i = 0; i < ids.size(); ++i) {
-        if (seen[ids[i]]) continue;
-        seen[ids[i]] = 1;
-        const tracks::Cone& c = track.cone(ids[i]);
-        map.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
-      }
       core::Estimate estimate;
-      estimate.stamp = t;
-      estimate.pose = truth.pose;
-      estimate.speed_mps = truth.vx_mps;
-      estimate.yaw_rate_rps = truth.yaw_rate_rps;
-      estimate.map = map;
+      if (slam) {
+        // SLAM: every delivered frame updates the backend; the driver sees only its estimate
+        while (auto d = rig.take_detections(t)) slam->process(*d);
+        estimate = slam->estimate_now(t);
+        obs = slam->observations_now(t);
+      } else {
+        if (noisy_perception) {
+          while (auto d = rig.take_detections(t)) {
+            latest_detections = std::move(d->observations);
+            latest_capture_pose = d->capture_pose;
+            for (int id : d->labels.cone_id)
+              if (id >= 0) ids.push_back(id);
+          }
+          // frames were taken at their capture pose: express them in today's vehicle frame
+          obs.stamp = latest_detections.stamp;
+          for (core::ConeObservation o : latest_detections.cones) {
+            o.position = truth.pose.inverse_transform(latest_capture_pose.transform(o.position));
+            obs.cones.push_back(o);
+          }
+        } else {
+          obs = perceive_ground_truth(track, truth.pose, s.sensors, is_knocked, &ids);
+          obs.stamp = t;
+        }
+        // without SLAM the map is an oracle: the true position of every cone detected once
+        for (size_t i = 0; i < ids.size(); ++i) {
+          if (seen[ids[i]]) continue;
+          seen[ids[i]] = 1;
+          const tracks::Cone& c = track.cone(ids[i]);
+          map.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
+        }
+        estimate.stamp = t;
+        estimate.pose = truth.pose;
+        estimate.speed_mps = truth.vx_mps;
+        estimate.yaw_rate_rps = truth.yaw_rate_rps;
+        estimate.map = map;
+      }
+      driving_pose = estimate.pose;
       command = driver.update({estimate, obs});
+      // before the go signal the car is held at the start
+      if (t < start_delay_us) command = {0.0, 0.0, true};
 
       // progress a few times per wall second
       if (options.on_progress && clock::now() - last_progress > std::chrono::milliseconds(250)) {
@@ -197,15 +213,17 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       const VehicleTruth truth = car.truth();
       driven.push_back(truth.pose.position());
       char row[200];
-      std::snprintf(row, sizeof(row), "%.3f,%.4f,%.4f,%.5f,%.3f,%.5f,%.3f\n", core::to_seconds(t),
-                    truth.pose.x, truth.pose.y, truth.pose.yaw, truth.vx_mps, truth.steer_rad,
-                    command.accel_mps2);
+      std::snprintf(row, sizeof(row), "%.3f,%.4f,%.4f,%.5f,%.3f,%.5f,%.3f,%.4f,%.4f,%.5f\n",
+                    core::to_seconds(t), truth.pose.x, truth.pose.y, truth.pose.yaw, truth.vx_mps,
+                    truth.steer_rad, command.accel_mps2, driving_pose.x, driving_pose.y,
+                    driving_pose.yaw);
       trajectory += row;
     }
     car.step(command);
     t += step_us;
     referee.update(t, car.truth());
     rig.step(t, car, referee);
+    if (slam) slam->step(t, car);
     if (t >= hard_stop_us) {
       dnf_override = "no verdict within the event's time limit";
       break;
@@ -254,7 +272,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       {"real_time_factor", round_to(result.sim_time_s / std::max(wall_s, 1e-9), 0.1)},
       {"passed", result.passed},
       {"pass_failures", result.failures},
-      {"slam", nlohmann::json::object()},
+      {"slam", slam ? nlohmann::json{{slam->name(), slam->metrics()}} : nlohmann::json::object()},
       {"sensors",
        {{"lidar_scans", rig.stats().lidar_scans},
         {"lidar_points", rig.stats().lidar_points},

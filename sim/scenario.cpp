@@ -289,6 +289,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
          has_event = true;
        }},
       {"seed", [&](const YAML::Node& n) { s.seed = read_seed(n, top, "seed"); }},
+      number("start_delay_s", s.start_delay_s, top),
       {"track",
        [&](const YAML::Node& n) {
          const Where w{fname, "track"};
@@ -331,9 +332,9 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
       {"slam",
        [&](const YAML::Node& n) {
          s.slam = read_string(n, top, "slam");
-         if (s.slam != "none")
+         if (s.slam != "none" && s.slam != "graph")
            throw InputError(fname, top.line(n),
-                            "slam: expected none (graph, ekf, fastslam1 and fastslam2 are not "
+                            "slam: expected none or graph (ekf, fastslam1 and fastslam2 are not "
                             "built yet), got '" + s.slam + "'");
        }},
       {"driver",
@@ -466,6 +467,11 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   }
   if (s.pass.max_cones_hit < 0 || s.pass.max_off_course < 0 || s.pass.max_final_time_s < 0.0)
     throw InputError(fname, "pass", "expected limits >= 0");
+  if (!(s.start_delay_s >= 0.0 && s.start_delay_s <= 60.0))
+    throw InputError(fname, "start_delay_s", "expected a delay from 0 to 60 s");
+  if (s.slam != "none" && s.perception != "cone_sensor")
+    throw InputError(fname, "slam", "SLAM runs on the cone sensor's detections: set perception: "
+                                    "cone_sensor");
   if (s.track.file && s.track.generate_seed)
     throw InputError(fname, "track", "give either file or generate, not both");
   return s;

@@ -73,6 +73,9 @@ struct Scenario {
   SensorSettings sensors;
   RefereeParams referee;
   PassCriteria pass;
+  /// The car stands still this long before the driver may go (the go signal), seconds; the
+  /// odometry learns the gyro bias meanwhile.
+  double start_delay_s = 1.0;
   /// Where the scenario was read from (empty for a built-in default).
   std::filesystem::path source_file;
 };

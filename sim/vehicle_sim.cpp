@@ -61,12 +61,17 @@ VehicleSim::VehicleSim(const vehicle_models::VehicleParams& params, const core::
     knuckle_body_[c] = require_id(model_, mjOBJ_BODY, "knuckle_" + corner);
     const int spin = require_id(model_, mjOBJ_JOINT, "spin_" + corner);
     spin_qvel_[c] = model_->jnt_dofadr[spin];
+    spin_qpos_[c] = model_->jnt_qposadr[spin];
     drive_actuator_[c] = require_id(model_, mjOBJ_ACTUATOR, "drive_" + corner);
     if (c < 2) {
       steer_qpos_[c] = model_->jnt_qposadr[require_id(model_, mjOBJ_JOINT, "steer_" + corner)];
       steer_actuator_[c] = require_id(model_, mjOBJ_ACTUATOR, "steer_" + corner);
     }
   }
+
+  // the IMU's sensors
+  gyro_adr_ = model_->sensor_adr[require_id(model_, mjOBJ_SENSOR, "gyro")];
+  accel_adr_ = model_->sensor_adr[require_id(model_, mjOBJ_SENSOR, "accelerometer")];
 
   // place the car: the free joint's position and yaw quaternion
   const int free_joint = require_id(model_, mjOBJ_JOINT, vehicle_models::MjcfNames::kChassis);
@@ -163,6 +168,16 @@ void VehicleSim::apply_controls(const core::VehicleCommand& command) {
   }
 }
 
+Eigen::Vector3d VehicleSim::imu_angular_rate() const {
+  const mjtNum* g = data_->sensordata + gyro_adr_;
+  return {g[0], g[1], g[2]};
+}
+
+Eigen::Vector3d VehicleSim::imu_specific_force() const {
+  const mjtNum* a = data_->sensordata + accel_adr_;
+  return {a[0], a[1], a[2]};
+}
+
 core::Pose3 VehicleSim::vehicle_pose3() const {
   const mjtNum* pos = data_->xpos + 3 * chassis_body_;
   const mjtNum* q = data_->xquat + 4 * chassis_body_;
@@ -184,6 +199,7 @@ VehicleTruth VehicleSim::truth() const {
   t.wheel_angle_rad = {data_->qpos[steer_qpos_[0]], data_->qpos[steer_qpos_[1]]};
   for (int c = 0; c < 4; ++c) {
     t.wheel_omega_rps[c] = data_->qvel[spin_qvel_[c]];
+    t.wheel_spin_rad[c] = data_->qpos[spin_qpos_[c]];
     const mjtNum* k = data_->xpos + 3 * knuckle_body_[c];
     t.wheel_positions[c] = {k[0], k[1]};
   }

@@ -31,6 +31,8 @@ struct VehicleTruth {
   std::array<double, 4> wheel_omega_rps{};
   /// Centres of the four wheels' contact patches in the track frame.
   std::array<core::Vec2, 4> wheel_positions{};
+  /// Accumulated spin angle of each wheel, radians (what the encoders count).
+  std::array<double, 4> wheel_spin_rad{};
 };
 
 /// Owns the MuJoCo model and data of one car.
@@ -53,6 +55,10 @@ class VehicleSim {
   /// x forward, z up) in the track frame, pitch, roll and heave included. Sensors mount on it.
   core::Pose3 vehicle_pose3() const;
 
+  /// What the IMU (gyro and accelerometer at the IMU site) measures exactly, vehicle frame.
+  Eigen::Vector3d imu_angular_rate() const;
+  Eigen::Vector3d imu_specific_force() const;
+
   /// Physics step, seconds.
   double timestep_s() const;
 
@@ -70,6 +76,9 @@ class VehicleSim {
   std::array<int, 4> knuckle_body_{};
   std::array<int, 2> steer_qpos_{};
   std::array<int, 4> spin_qvel_{};
+  std::array<int, 4> spin_qpos_{};
+  int gyro_adr_ = -1;
+  int accel_adr_ = -1;
   std::array<int, 2> steer_actuator_{};
   std::array<int, 4> drive_actuator_{};
   double steer_rad_ = 0.0;

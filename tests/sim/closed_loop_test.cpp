@@ -66,3 +66,25 @@ TEST(ClosedLoop, AutocrossIsDeterministicBySeed) {
 
 }  // namespace
 }  // namespace conesim::sim
+
+namespace conesim::sim {
+namespace {
+
+TEST(ClosedLoop, AutocrossDrivesOnTheGraphSlamEstimate) {
+  // the driver sees only the SLAM estimate built from the noisy cone sensor and odometry
+  const RunResult r = run_shipped("autocross", 1, "slam",
+                                  {"perception=cone_sensor", "slam=graph"});
+  EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
+  EXPECT_TRUE(r.referee.cones_hit.empty());
+  const nlohmann::json& g = r.metrics["slam"]["graph"];
+  // issue 5 targets that hold in the loop: map error, associations, one true loop closure
+  EXPECT_LE(g["map_rmse_m"].get<double>(), 0.15);
+  EXPECT_GE(g["da_correct_fraction"].get<double>(), 0.99);
+  EXPECT_EQ(g["loop_closures"].get<int>(), 1);
+  EXPECT_EQ(g["false_loop_closures"].get<int>(), 0);
+  EXPECT_EQ(g["phase"].get<std::string>(), "localisation");
+  EXPECT_EQ(g["map_spurious"].get<int>(), 0);
+}
+
+}  // namespace
+}  // namespace conesim::sim

@@ -1,0 +1,264 @@
+#include "sim/slam_runner.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+namespace conesim::sim {
+
+using core::TimeUs;
+
+namespace {
+
+constexpr uint64_t kImuStream = 201;
+constexpr uint64_t kWheelStream = 202;
+constexpr uint64_t kSteeringStream = 203;
+// a map cone farther than this from every true cone is spurious (ARCHITECTURE: 1 m cut-off)
+constexpr double kMatchCutoffM = 1.0;
+// a loop closure is true when the car is this close to where it was much earlier
+constexpr double kLoopTruthRadiusM = 15.0;
+constexpr double kLoopTruthMinTravelM = 60.0;
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[static_cast<size_t>(q * (v.size() - 1) + 0.5)];
+}
+
+double rms(const std::vector<double>& squares) {
+  if (squares.empty()) return 0.0;
+  double sum = 0.0;
+  for (double s : squares) sum += s;
+  return std::sqrt(sum / squares.size());
+}
+
+slam::GraphSlamConfig graph_config(const Scenario& s) {
+  slam::GraphSlamConfig c;
+  const auto& cs = s.sensors.cone_sensor;
+  c.sensor_x_m = cs.mount_x_m;
+  c.min_range_m = cs.min_range_m;
+  c.max_range_m = cs.max_range_m;
+  c.fov_deg = cs.fov_deg;
+  // the MuJoCo car's rear axle slides sideways in turns (slip angles up to about 1 degree):
+  // the no-lateral-motion constraint must allow that
+  c.icr_sigma_m = 0.3;
+  return c;
+}
+
+slam::OdometryConfig odometry_config(const Scenario& s) {
+  slam::OdometryConfig c;
+  c.wheel_radius_m = s.vehicle.wheel_radius_m;
+  c.wheelbase_m = s.vehicle.wheelbase_m;
+  // the gyro's yaw rate: on the MuJoCo car the anti-Ackermann front tyres fight, and the
+  // bicycle model overstates the yaw rate by up to 18 % at large angles (VEHICLE_NOTES.md)
+  c.model = slam::MotionModel::kUnicycle;
+  return c;
+}
+
+}  // namespace
+
+SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const VehicleSim& car)
+    : track_(track),
+      odometry_(odometry_config(s)),
+      imu_(sensors::ImuConfig{}, core::derive_seed(s.seed, kImuStream)),
+      wheels_(sensors::WheelEncoderConfig{}, core::derive_seed(s.seed, kWheelStream)),
+      steering_(sensors::SteeringSensorConfig{}, core::derive_seed(s.seed, kSteeringStream)) {
+  if (s.slam != "graph") throw std::invalid_argument("slam: only graph runs in the loop so far");
+  backend_ = std::make_unique<slam::GraphSlam>(graph_config(s));
+  const core::Pose2 start = car.truth().pose;
+  backend_->reset(start, 0);
+  odometry_.reset(0);
+  if (s.event == core::EventType::kSkidpad) {
+    // skidpad localises against its known layout
+    std::vector<core::MapCone> prior;
+    for (const auto& c : track.cones)
+      prior.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-4});
+    backend_->set_prior_map(prior);
+  }
+  last_estimate_ = backend_->estimate();
+  last_frame_pose_ = start;
+  cone_observed_.assign(static_cast<size_t>(track.next_id()), 0);
+}
+
+void SlamRunner::step(TimeUs t, const VehicleSim& car) {
+  now_ = t;
+  // sample what is due; samples arrive after their latency
+  const bool imu_due = t % imu_.config().timing.period_us() == 0;
+  const bool wheels_due = t % wheels_.config().timing.period_us() == 0;
+  const bool steer_due = t % steering_.config().timing.period_us() == 0;
+  if (imu_due || wheels_due || steer_due) {
+    const VehicleTruth truth = car.truth();
+    sensors::VehicleSensorTruth st;
+    st.stamp = t;
+    st.angular_rate_rps = car.imu_angular_rate();
+    st.specific_force_mps2 = car.imu_specific_force();
+    st.wheel_angle_rad = truth.wheel_spin_rad;
+    st.steer_rad = truth.steer_rad;
+    if (imu_due) {
+      VehicleSample v{t, 0, imu_.sample(st), {}, {}};
+      in_flight_.push_back({t + imu_.config().timing.latency_us(), v});
+    }
+    if (wheels_due) {
+      VehicleSample v{t, 1, {}, wheels_.sample(st), {}};
+      in_flight_.push_back({t + wheels_.config().timing.latency_us(), v});
+    }
+    if (steer_due) {
+      VehicleSample v{t, 2, {}, {}, steering_.sample(st)};
+      in_flight_.push_back({t + steering_.config().timing.latency_us(), v});
+    }
+  }
+  // deliver in stamp order what has arrived
+  while (!in_flight_.empty()) {
+    auto it = std::min_element(in_flight_.begin(), in_flight_.end(),
+                               [](const auto& a, const auto& b) { return a.first < b.first; });
+    if (it->first > t) break;
+    delivered_.push_back(it->second);
+    in_flight_.erase(it);
+  }
+  std::stable_sort(delivered_.begin(), delivered_.end(),
+                   [](const VehicleSample& a, const VehicleSample& b) { return a.stamp < b.stamp; });
+}
+
+void SlamRunner::feed_until(slam::Odometry& odometry, TimeUs stamp,
+                            std::deque<VehicleSample>* queue) const {
+  while (!queue->empty() && queue->front().stamp <= stamp) {
+    const VehicleSample& v = queue->front();
+    if (v.kind == 0) odometry.add_imu(v.imu);
+    if (v.kind == 1) odometry.add_wheel_speeds(v.wheels);
+    if (v.kind == 2) odometry.add_steering(v.steering);
+    queue->pop_front();
+  }
+}
+
+void SlamRunner::process(const DeliveredDetections& frame) {
+  using clock = std::chrono::steady_clock;
+  const TimeUs stamp = frame.observations.stamp;
+  feed_until(odometry_, stamp, &delivered_);
+  const slam::SlamInput input{odometry_.take_delta(stamp), frame.observations};
+  const int closures_before = backend_->loop_closures();
+
+  // the update, timed
+  const auto start = clock::now();
+  backend_->process(input);
+  update_ms_.push_back(std::chrono::duration<double, std::milli>(clock::now() - start).count());
+  last_estimate_ = backend_->estimate();
+  last_observations_ = frame.observations;
+  last_frame_pose_ = last_estimate_.pose;
+
+  // trajectory error at the capture time, no alignment
+  const core::Pose2& truth = frame.capture_pose;
+  const core::Pose2& est = last_estimate_.pose;
+  position_error2_.push_back((est.position() - truth.position()).squaredNorm());
+  yaw_error2_.push_back(std::pow(core::normalize_angle(est.yaw - truth.yaw), 2));
+  const double travelled = true_path_.empty()
+                               ? 0.0
+                               : true_odometer_.back() +
+                                     (truth.position() - true_path_.back().position()).norm();
+  true_path_.push_back(truth);
+  true_odometer_.push_back(travelled);
+
+  // associations against the labels: a match is right when the landmark's majority cone is
+  // the observation's true cone
+  const auto& associations = backend_->last_associations();
+  for (size_t i = 0; i < associations.size() && i < frame.labels.cone_id.size(); ++i) {
+    const int true_id = frame.labels.cone_id[i];
+    if (true_id >= 0) cone_observed_[true_id] = 1;
+    const auto& a = associations[i];
+    if (a.kind == slam::Association::Kind::kRejected) continue;
+    auto& votes = landmark_votes_[a.landmark_id];
+    if (a.kind == slam::Association::Kind::kMatched) {
+      int majority = -3, best = 0;
+      for (const auto& [id, n] : votes)
+        if (n > best) best = n, majority = id;
+      if (majority == true_id && true_id >= 0) ++da_correct_;
+      else ++da_wrong_;
+    }
+    ++votes[true_id];
+  }
+
+  // a loop closure is false unless the car really is back near where it was long before
+  for (int k = closures_before; k < backend_->loop_closures(); ++k) {
+    ++loop_closures_;
+    bool real = false;
+    for (size_t j = 0; j < true_path_.size(); ++j) {
+      if (travelled - true_odometer_[j] < kLoopTruthMinTravelM) break;
+      if ((true_path_[j].position() - truth.position()).norm() < kLoopTruthRadiusM) real = true;
+    }
+    if (!real) ++false_loop_closures_;
+  }
+}
+
+core::Estimate SlamRunner::estimate_now(TimeUs t) const {
+  // carry the last estimate forward with the odometry delivered since its frame
+  slam::Odometry forward = odometry_;
+  std::deque<VehicleSample> pending = delivered_;
+  feed_until(forward, t, &pending);
+  const slam::OdometryDelta delta = forward.take_delta(t);
+  core::Estimate e = last_estimate_;
+  e.stamp = t;
+  e.pose = last_estimate_.pose.compose(delta.delta);
+  e.speed_mps = forward.speed_mps();
+  e.yaw_rate_rps = forward.yaw_rate_rps();
+  return e;
+}
+
+core::ConeObservations SlamRunner::observations_now(TimeUs t) const {
+  const core::Pose2 now = estimate_now(t).pose;
+  core::ConeObservations obs = last_observations_;
+  for (auto& o : obs.cones) o.position = now.inverse_transform(last_frame_pose_.transform(o.position));
+  return obs;
+}
+
+nlohmann::json SlamRunner::metrics() const {
+  // map: each estimated cone to its nearest true cone within the cut-off, one to one (greedy
+  // over all pairs by distance), no alignment
+  const core::Estimate e = backend_->estimate();
+  struct Pair {
+    double d;
+    size_t est;
+    size_t truth;
+  };
+  std::vector<Pair> pairs;
+  for (size_t i = 0; i < e.map.size(); ++i)
+    for (size_t j = 0; j < track_.cones.size(); ++j) {
+      const double d = (e.map[i].position - track_.cones[j].position).norm();
+      if (d < kMatchCutoffM) pairs.push_back({d, i, j});
+    }
+  std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) { return a.d < b.d; });
+  std::vector<char> est_used(e.map.size(), 0), true_used(track_.cones.size(), 0);
+  std::vector<double> err2;
+  for (const Pair& p : pairs) {
+    if (est_used[p.est] || true_used[p.truth]) continue;
+    est_used[p.est] = true_used[p.truth] = 1;
+    err2.push_back(p.d * p.d);
+  }
+  int observed = 0, missed = 0;
+  for (size_t j = 0; j < track_.cones.size(); ++j) {
+    if (!cone_observed_[track_.cones[j].id]) continue;
+    ++observed;
+    if (!true_used[j]) ++missed;
+  }
+  const int matched = static_cast<int>(err2.size());
+  const int total_da = da_correct_ + da_wrong_;
+  return {
+      {"map_rmse_m", rms(err2)},
+      {"map_matched", matched},
+      {"map_missed", missed},
+      {"map_spurious", static_cast<int>(e.map.size()) - matched},
+      {"map_cones_observed", observed},
+      {"ate_rmse_m", rms(position_error2_)},
+      {"yaw_rmse_rad", rms(yaw_error2_)},
+      {"da_correct", da_correct_},
+      {"da_wrong", da_wrong_},
+      {"da_correct_fraction", total_da ? static_cast<double>(da_correct_) / total_da : 1.0},
+      {"loop_closures", loop_closures_},
+      {"false_loop_closures", false_loop_closures_},
+      {"phase", e.phase == core::SlamPhase::kLocalisation ? "localisation" : "mapping"},
+      {"updates", update_ms_.size()},
+      {"update_ms_median", percentile(update_ms_, 0.5)},
+      {"update_ms_p99", percentile(update_ms_, 0.99)},
+  };
+}
+
+}  // namespace conesim::sim

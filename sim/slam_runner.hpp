@@ -1,0 +1,90 @@
+#pragma once
+// SLAM in the loop (`slam: graph`): the vehicle sensors feed the odometry on their schedules,
+// each delivered cone frame runs one backend update, and the driver gets the backend's estimate
+// carried forward to the present with the odometry since. Everything the backend does is scored
+// against ground truth here, in the harness: map, trajectory, associations, loop closures,
+// update time.
+
+#include <deque>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <vector>
+
+#include "sensors/vehicle_sensors.hpp"
+#include "sim/scenario.hpp"
+#include "sim/sensor_rig.hpp"
+#include "sim/vehicle_sim.hpp"
+#include "slam/backends/graph_slam.hpp"
+#include "slam/odometry.hpp"
+#include "tracks/track.hpp"
+
+namespace conesim::sim {
+
+class SlamRunner {
+ public:
+  /// A backend starting at the true start pose (the map frame, ARCHITECTURE decision 6), with
+  /// the layout as prior map for skidpad.
+  SlamRunner(const Scenario& scenario, const tracks::Track& track, const VehicleSim& car);
+
+  /// Samples the vehicle sensors due at t.
+  void step(core::TimeUs t, const VehicleSim& car);
+
+  /// Runs the backend on a delivered cone frame (true pose at capture for the scoring).
+  void process(const DeliveredDetections& frame);
+
+  /// The estimate at time t: the backend's, moved forward by the odometry since its last frame.
+  core::Estimate estimate_now(core::TimeUs t) const;
+
+  /// The latest frame's observations expressed in the vehicle frame at t (by the estimate).
+  core::ConeObservations observations_now(core::TimeUs t) const;
+
+  /// The backend's figures for metrics.json (keys of ARCHITECTURE.md under slam.<name>).
+  nlohmann::json metrics() const;
+
+  std::string name() const { return backend_->name(); }
+
+ private:
+  struct VehicleSample;
+  void feed_until(slam::Odometry& odometry, core::TimeUs stamp,
+                  std::deque<VehicleSample>* queue) const;
+
+  const tracks::Track& track_;
+  std::unique_ptr<slam::Backend> backend_;
+  slam::Odometry odometry_;
+  sensors::Imu imu_;
+  sensors::WheelEncoders wheels_;
+  sensors::SteeringSensor steering_;
+
+  // samples delivered (latency passed) but not yet fed, in stamp order
+  struct VehicleSample {
+    core::TimeUs stamp;
+    int kind;  // 0 imu, 1 wheels, 2 steering
+    core::ImuSample imu;
+    core::WheelSpeeds wheels;
+    core::SteeringSample steering;
+  };
+  std::deque<std::pair<core::TimeUs, VehicleSample>> in_flight_;
+  std::deque<VehicleSample> delivered_;
+  core::TimeUs now_ = 0;
+
+  core::Estimate last_estimate_;
+  core::ConeObservations last_observations_;
+  core::Pose2 last_frame_pose_;
+
+  // scoring
+  std::vector<double> update_ms_;
+  std::vector<double> position_error2_;
+  std::vector<double> yaw_error2_;
+  std::vector<core::Pose2> true_path_;
+  std::vector<double> true_odometer_;
+  int da_correct_ = 0;
+  int da_wrong_ = 0;
+  int loop_closures_ = 0;
+  int false_loop_closures_ = 0;
+  // true cone ids seen by each landmark (by landmark id), for its majority identity
+  std::map<int, std::map<int, int>> landmark_votes_;
+  std::vector<char> cone_observed_;
+};
+
+}  // namespace conesim::sim
