@@ -46,7 +46,7 @@ std::string build_mjcf(const VehicleParams& p, const MjcfOptions& o) {
     << "  <compiler angle=\"radian\"/>\n"
     << "  <option timestep=\"" << o.timestep_s
     << "\" cone=\"elliptic\" impratio=\"1\" integrator=\"Euler\" gravity=\"0 0 -9.81\"/>\n"
-    << "  <size nconmax=\"32\" njmax=\"160\" nstack=\"200000\"/>\n"
+    << "  <size nconmax=\"32\" njmax=\"160\" nstack=\"20000\"/>\n"
     << "  <visual>\n"
     << "    <global offwidth=\"" << o.offscreen_width_px << "\" offheight=\""
     << o.offscreen_height_px << "\"/>\n"
