@@ -229,6 +229,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       break;
     }
   }
+  rig.finish();
   const double wall_s = std::chrono::duration<double>(clock::now() - wall_start).count();
 
   // the verdict and the pass criteria

@@ -113,11 +113,20 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
   }
 }
 
-SensorRig::~SensorRig() = default;
+SensorRig::~SensorRig() {
+  if (pending_scan_.valid()) pending_scan_.wait();
+}
+
+void SensorRig::finish() {
+  if (pending_scan_.valid()) collect_sweep();
+}
 
 void SensorRig::sync_knocked_cones(const Referee& referee) {
   // a knocked cone leaves the LiDAR scene (the camera and cone sensor ask the referee)
   const auto& hit = referee.result().cones_hit;
+  if (knocked_seen_ == hit.size()) return;
+  // the scene must not change under a sweep in flight
+  if (pending_scan_.valid()) collect_sweep();
   for (; knocked_seen_ < hit.size(); ++knocked_seen_)
     if (lidar_) lidar_->set_cone_present(hit[knocked_seen_], false);
 }
@@ -126,20 +135,35 @@ void SensorRig::step(TimeUs t, const VehicleSim& car, const Referee& referee) {
   sync_knocked_cones(referee);
   if (lidar_) {
     poses_.push(t, car.vehicle_pose3());
-    if (t > lidar_->sweep_end(sweep_start_)) sweep_lidar(t);
+    if (t > lidar_->sweep_end(sweep_start_)) start_sweep();
   }
   if (camera_ && t % camera_period_us_ == 0) render_camera(t, car, referee);
   if (cone_sensor_ && t % cone_period_us_ == 0) sense_cones(t, car, referee);
 }
 
-void SensorRig::sweep_lidar(TimeUs) {
-  using clock = std::chrono::steady_clock;
-  const auto start = clock::now();
-  const sensors::LidarScan scan = lidar_->sweep(sweep_start_, poses_, lidar_rng_);
-  stats_.lidar_ms_total += std::chrono::duration<double, std::milli>(clock::now() - start).count();
+void SensorRig::start_sweep() {
+  // one sweep at a time: the previous one finishes (and uses the generator) first
+  if (pending_scan_.valid()) collect_sweep();
+  // the thread gets its own copy of the poses the sweep spans
+  sensors::PoseHistory window(2 * lidar_->config().sweep_period_us());
+  const TimeUs start = sweep_start_;
+  const TimeUs end = lidar_->sweep_end(start);
+  for (TimeUs t = start; t <= end + 1000; t += 1000) window.push(t, poses_.at(std::min(t, poses_.newest())));
+  sweep_start_ += lidar_->config().sweep_period_us();
+  pending_scan_ = std::async(std::launch::async, [this, start, window = std::move(window)] {
+    using clock = std::chrono::steady_clock;
+    const auto t0 = clock::now();
+    sensors::LidarScan scan = lidar_->sweep(start, window, lidar_rng_);
+    pending_ms_ = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
+    return scan;
+  });
+}
+
+void SensorRig::collect_sweep() {
+  const sensors::LidarScan scan = pending_scan_.get();
+  stats_.lidar_ms_total += pending_ms_;
   const int index = stats_.lidar_scans++;
   stats_.lidar_points += static_cast<int64_t>(scan.cloud.points.size());
-  sweep_start_ += lidar_->config().sweep_period_us();
 
   // the dump: PCD, sidecar and a top-down picture
   if (!dump_.sensors.count("lidar") || index % dump_.every != 0) return;
@@ -153,7 +177,7 @@ void SensorRig::sweep_lidar(TimeUs) {
       {"sensor_in_vehicle", pose3_json(lidar_->config().mount)},
       {"sensor_in_track_at_start", pose3_json(scan.labels.sensor_pose_start)},
       {"sensor_in_track_at_end", pose3_json(scan.labels.sensor_pose_end)},
-      {"true_vehicle_pose_at_start", pose2_json(poses_.at(scan.cloud.stamp).planar())}};
+      {"true_sensor_pose_at_start", pose2_json(scan.labels.sensor_pose_start.planar())}};
   write_text(dir / frame_name(index, "json"), sidecar.dump(2) + "\n");
   if (dump_.lidar_png) {
     PlotData cones{"cones", {}}, ground{"ground", {}};

@@ -4,6 +4,7 @@
 // step() after every physics step and takes the delivered cone detections.
 
 #include <deque>
+#include <future>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -66,10 +67,15 @@ class SensorRig {
   bool cone_sensor_on() const { return cone_sensor_ != nullptr; }
   bool lidar_on() const { return lidar_ != nullptr; }
   bool camera_on() const { return camera_ != nullptr; }
+  /// Counters; call finish() first so that the sweep in flight is counted.
   const SensorRigStats& stats() const { return stats_; }
 
+  /// Waits for the LiDAR sweep still computing on the second core and dumps it.
+  void finish();
+
  private:
-  void sweep_lidar(core::TimeUs t);
+  void start_sweep();
+  void collect_sweep();
   void render_camera(core::TimeUs t, const VehicleSim& car, const Referee& referee);
   void sense_cones(core::TimeUs t, const VehicleSim& car, const Referee& referee);
   void sync_knocked_cones(const Referee& referee);
@@ -87,6 +93,10 @@ class SensorRig {
   sensors::PoseHistory poses_;
   core::Rng lidar_rng_;
   core::TimeUs sweep_start_ = 0;
+  // the sweep computing on another thread while the physics goes on (one at a time, in order,
+  // so the noise sequence and the results are the same as sequential sweeps)
+  std::future<sensors::LidarScan> pending_scan_;
+  double pending_ms_ = 0.0;
 
   std::unique_ptr<sensors::StereoCamera> camera_;
   core::TimeUs camera_period_us_ = 0;

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include "sim/run.hpp"
 #include "sim/scenario.hpp"
 
@@ -84,6 +86,45 @@ TEST(ClosedLoop, AutocrossDrivesOnTheGraphSlamEstimate) {
   EXPECT_EQ(g["false_loop_closures"].get<int>(), 0);
   EXPECT_EQ(g["phase"].get<std::string>(), "localisation");
   EXPECT_EQ(g["map_spurious"].get<int>(), 0);
+}
+
+}  // namespace
+}  // namespace conesim::sim
+
+namespace conesim::sim {
+namespace {
+
+TEST(ClosedLoop, DumpsLidarCameraAndDetectionsBesideTheRun) {
+  const Scenario s = load_scenario(find_scenario("acceleration"), {"seed=1"});
+  RunOptions options;
+  options.out_dir = fs::temp_directory_path() / ("conesim-dump-" + std::to_string(::getpid()));
+  options.plot = false;
+  options.dump.sensors = {"lidar", "camera", "detections"};
+  options.dump.every = 25;
+  options.dump.lidar_png = false;
+  const RunResult r = run_scenario(s, scenario_track(s), options);
+  EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
+  const fs::path images = options.out_dir / "images";
+
+  // the first LiDAR sweep: a PCD with the documented fields and a sidecar
+  std::ifstream pcd(images / "lidar/000000.pcd");
+  std::string line, fields;
+  while (std::getline(pcd, line))
+    if (line.rfind("FIELDS", 0) == 0) fields = line;
+  EXPECT_EQ(fields, "FIELDS x y z intensity ring time label");
+  EXPECT_TRUE(fs::exists(images / "lidar/000000.json"));
+  // the camera pair and its calibration, the detections with their labels
+  EXPECT_TRUE(fs::exists(images / "camera/left/000000.png"));
+  EXPECT_TRUE(fs::exists(images / "camera/right/000000.png"));
+  nlohmann::json cam, det;
+  std::ifstream(images / "camera/000000.json") >> cam;
+  EXPECT_GT(cam["intrinsics"]["fx"].get<double>(), 100.0);
+  EXPECT_NEAR(cam["baseline_m"].get<double>(), 0.12, 1e-9);
+  std::ifstream(images / "detections/000000.json") >> det;
+  EXPECT_FALSE(det["cones"].empty());
+  EXPECT_TRUE(det["cones"][0].contains("true_cone_id"));
+  EXPECT_GT(r.metrics["sensors"]["lidar_scans"].get<int>(), 0);
+  fs::remove_all(options.out_dir);
 }
 
 }  // namespace
