@@ -5,15 +5,14 @@
 #include <numbers>
 #include <sstream>
 
+#include "core/validate.hpp"
+
 namespace conesim::sensors {
 
 namespace {
 
 std::string check(const std::string& key, double v, double lo, double hi) {
-  if (std::isfinite(v) && v >= lo && v <= hi) return {};
-  std::ostringstream s;
-  s << "cone_sensor." << key << ": expected a number in [" << lo << ", " << hi << "], got " << v;
-  return s.str();
+  return core::check_range("cone_sensor." + key, v, lo, hi);
 }
 
 // a Poisson count by inversion (small means only)

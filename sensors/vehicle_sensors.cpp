@@ -4,16 +4,14 @@
 #include <numbers>
 #include <sstream>
 
+#include "core/validate.hpp"
+
 namespace conesim::sensors {
 
 namespace {
 
-// "prefix.key: expected ..., got v" unless lo <= v <= hi and v is finite
 std::string check(const std::string& key, double v, double lo, double hi) {
-  if (std::isfinite(v) && v >= lo && v <= hi) return {};
-  std::ostringstream s;
-  s << key << ": expected a number in [" << lo << ", " << hi << "], got " << v;
-  return s.str();
+  return core::check_range(key, v, lo, hi);
 }
 
 std::string first_error(std::initializer_list<std::string> errors) {

@@ -3,15 +3,14 @@
 #include <cmath>
 #include <sstream>
 
+#include "core/validate.hpp"
+
 namespace conesim::slam {
 
 namespace {
 
 std::string check(const std::string& key, double v, double lo, double hi) {
-  if (std::isfinite(v) && v >= lo && v <= hi) return {};
-  std::ostringstream s;
-  s << "odometry." << key << ": expected a number in [" << lo << ", " << hi << "], got " << v;
-  return s.str();
+  return core::check_range("odometry." + key, v, lo, hi);
 }
 
 // the chord of an arc in the frame at its start, and its derivatives by (ds, dyaw)

@@ -3,16 +3,14 @@
 #include <cmath>
 #include <sstream>
 
+#include "core/validate.hpp"
+
 namespace conesim::vehicle_models {
 
 namespace {
 
-// "key: expected ..., got v" when v is not finite or outside [lo, hi]
 std::string check_range(const char* key, double v, double lo, double hi) {
-  if (std::isfinite(v) && v >= lo && v <= hi) return {};
-  std::ostringstream s;
-  s << key << ": expected a number in [" << lo << ", " << hi << "], got " << v;
-  return s.str();
+  return core::check_range(std::string(key), v, lo, hi);
 }
 
 }  // namespace
@@ -31,8 +29,8 @@ std::string VehicleParams::validate() const {
       {"length_m", check_range("length_m", length_m, wheelbase_m, 10)},
       {"width_m", check_range("width_m", width_m, track_m, 5)},
       {"front_overhang_from_rear_axle_m",
-       check_range("front_overhang_from_rear_axle_m", front_overhang_from_rear_axle_m,
-                   wheelbase_m, length_m)},
+       check_range("front_overhang_from_rear_axle_m", front_overhang_from_rear_axle_m, wheelbase_m,
+                   length_m)},
       {"max_steer_rad", check_range("max_steer_rad", max_steer_rad, 0.05, 1.0)},
       {"max_steer_rate_rps", check_range("max_steer_rate_rps", max_steer_rate_rps, 0.1, 50)},
       {"ackermann_factor", check_range("ackermann_factor", ackermann_factor, -2, 2)},
