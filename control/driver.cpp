@@ -43,6 +43,9 @@ constexpr double kMinLapDistanceM = 100.0;
 // the lap line is searched among the big orange cones while the car is this close to the
 // start (by distance travelled), metres
 constexpr double kLapLineSearchOdometerM = 40.0;
+// after the last lap the car runs on this far before braking (past the time-keeping gate, which
+// PacSim tracks put up to 8 m beyond the start pose), metres
+constexpr double kRunOutAfterFinishM = 12.0;
 // half length of the assumed line through the front wing when no big orange cone is known
 constexpr double kFallbackLineHalfWidthM = 4.0;
 // progress along a long path is searched this many segments behind and ahead of the last one
@@ -139,6 +142,8 @@ struct Driver::Impl {
   // lap counting on the start/finish line, and the trace of lap 1
   LapLine lap_line;
   double odometer_at_lap = 0.0;
+  // after the last lap the car runs on this far (odometer) before it brakes
+  std::optional<double> run_out_until_m;
   std::vector<Vec2> trace;
   std::optional<size_t> trace_lap_start;
 
@@ -370,6 +375,7 @@ struct Driver::Impl {
         trace_lap_start = trace.size();  // the start crossing opens the lap-1 trace
       }
     }
+    if (run_out_until_m && status.odometer_m >= *run_out_until_m) phase = Phase::kBraking;
     if (phase == Phase::kExplore &&
         (trace.empty() || (est.pose.position() - trace.back()).norm() >= kTraceStepM))
       trace.push_back(est.pose.position());
@@ -401,7 +407,9 @@ struct Driver::Impl {
   void on_lap(const core::Estimate& est) {
     const int laps = event == EventType::kAutocross ? 1 : params.trackdrive_laps;
     if (status.laps_counted >= laps) {
-      phase = Phase::kBraking;
+      // the car's own line may sit ahead of the time-keeping gate (tracks without big orange
+      // cones put it at the start pose): run on past any gate nearby, then brake
+      run_out_until_m = status.odometer_m + kRunOutAfterFinishM;
       return;
     }
     if (phase != Phase::kExplore) return;
