@@ -345,6 +345,7 @@ void finish(Track& track, const Given& given) {
     track.closed =
         given.closed ? *given.closed
                      : lane_closes(track, track.left_lane) && lane_closes(track, track.right_lane);
+    extend_open_lanes_with_orange(track);
     orient_lanes(track);
   } else {
     rebuild_lanes(track);

@@ -363,6 +363,22 @@ Vec2 left_direction_at(const Track& track, const Vec2& p) {
   return {-std::sin(track.start.yaw), std::cos(track.start.yaw)};
 }
 
+void extend_open_lanes_with_orange(Track& track) {
+  if (track.closed) return;
+  // the pool: orange cones that neither lane holds yet
+  std::vector<int> pool;
+  for (const Cone& c : track.cones) {
+    if (c.cls != ConeClass::kOrangeSmall) continue;
+    const auto in = [&c](const std::vector<int>& lane) {
+      return std::find(lane.begin(), lane.end(), c.id) != lane.end();
+    };
+    if (!in(track.left_lane) && !in(track.right_lane)) pool.push_back(c.id);
+  }
+  std::vector<bool> pool_used(pool.size(), false);
+  extend_with_orange(track, track.left_lane, pool, pool_used);
+  extend_with_orange(track, track.right_lane, pool, pool_used);
+}
+
 std::vector<Gate> gates_from_big_orange(const Track& track) {
   // group the big orange cones: connected when closer than kGateGroupRadiusM
   const std::vector<int> ids = ids_of(track, ConeClass::kOrangeBig);

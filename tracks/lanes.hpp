@@ -20,6 +20,11 @@ std::vector<int> order_lane(const Track& track, const std::vector<int>& cone_ids
 /// direction of travel keep blue on the left.
 void rebuild_lanes(Track& track);
 
+/// Extends the lanes of an open layout at both ends with the small orange cones (not yet in a lane)
+/// that continue their line: the braking zone of an acceleration layout whose file lists it
+/// apart (fssim's cones_orange).
+void extend_open_lanes_with_orange(Track& track);
+
 /// When the source gives no start pose: the middle of the first timing gate or of the big orange
 /// start gate (else the first centre-line point, the first lane cones or the middle of the
 /// cones), facing along the centre line or the lanes (else across the nearest blue/yellow
