@@ -28,6 +28,9 @@ namespace {
 using core::InputError;
 
 /// Two cones of one class closer than this are one cone listed twice.
+// a start pose guessed from the first gate is moved this far behind it (the front wing starts
+// behind the time-keeping line), metres
+constexpr double kStartBehindGateM = 6.0;
 constexpr double kDuplicateRadiusM = 0.01;
 /// Largest coordinate accepted, metres: room for UTM northings, and distances stay finite.
 constexpr double kMaxCoordinateM = 1e7;
@@ -363,6 +366,19 @@ void finish(Track& track, const Given& given) {
   if (!given.start) {
     if (const std::optional<double> yaw = centre_line_yaw(track, track.start.position()))
       track.start.yaw = *yaw;
+    // a start guessed on the timing line moves behind it, as cars start behind the line
+    if (!track.timing_gates.empty()) {
+      const Gate& first = track.timing_gates.front();
+      const Vec2 middle = 0.5 * (first.left + first.right);
+      if ((track.start.position() - middle).norm() < 0.5) {
+        track.start = track.start.compose({-kStartBehindGateM, 0.0, 0.0});
+        track.warnings.push_back("the guessed start stands " + std::to_string(kStartBehindGateM) +
+                                 " m behind the first timing gate");
+        // lanes and centre line begin near the start
+        orient_lanes(track);
+        if (left_length_m <= kMaxLaneLengthM) track.centre_line = derive_centre_line(track);
+      }
+    }
   }
 
   // gates: left post on the left of travel, made gates in the order they are passed

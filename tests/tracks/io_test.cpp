@@ -299,12 +299,15 @@ TEST(ReadTrack, EufsGatesFromBigOrangeConesInTheOrderPassed) {
   EXPECT_EQ(track.timing_gates[1].left, Vec2(25.0, 1.5));
 }
 
-TEST(ReadTrack, EpflHasNoCovarianceWhenTheStdsAreZeroAndAGuessedStartAtTheGate) {
+TEST(ReadTrack, EpflHasNoCovarianceWhenTheStdsAreZeroAndAGuessedStartBehindTheGate) {
   const Track track = read_track(data("epfl/fsds_competition_1_cones.csv"));
   for (const Cone& c : track.cones) EXPECT_FALSE(c.covariance.has_value());
-  // the big orange cones stand at x = -2.0 / 1.45, y = 5.57 / 6.87; the track runs along +y
-  EXPECT_NEAR(track.start.x, (-2.000356449999998 + 1.4522998000000067) / 2, 1e-6);
-  EXPECT_NEAR(track.start.y, (5.571884770000005 + 6.871884770000008) / 2, 1e-6);
+  // the big orange cones stand at x = -2.0 / 1.45, y = 5.57 / 6.87; the track runs along +y,
+  // and the guessed start stands 6 m behind the middle of that gate
+  const Vec2 gate_middle((-2.000356449999998 + 1.4522998000000067) / 2,
+                         (5.571884770000005 + 6.871884770000008) / 2);
+  EXPECT_NEAR((track.start.position() - gate_middle).norm(), 6.0, 1e-6);
+  EXPECT_GT((gate_middle - track.start.position()).dot(track.start.heading()), 5.9);
   EXPECT_GT(track.start.heading().y(), 0.9);
   ASSERT_EQ(track.timing_gates.size(), 1u);
   EXPECT_LT(track.timing_gates[0].left.x(), track.timing_gates[0].right.x());
