@@ -24,7 +24,11 @@ constexpr double kHardStopMarginS = 60.0;
 // rows of trajectory.csv per sim second
 constexpr double kTrajectoryRateHz = 20.0;
 
-double round_to(double v, double step) { return std::round(v / step) * step; }
+// rounds to a decimal step (0.1, 0.001) so the JSON shows the short form of the number
+double round_to(double v, double step) {
+  const double per_unit = std::round(1.0 / step);
+  return std::round(v * per_unit) / per_unit;
+}
 
 // writes text to a file all at once: a temporary file renamed into place
 void write_file_atomically(const fs::path& file, const std::string& text) {
