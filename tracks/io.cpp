@@ -460,30 +460,32 @@ Track parse_fssim(const YAML::Node& root, const std::string& file, Track track) 
 // ---------------------------------------------------------------------------------------------
 // PacSim YAML
 
-std::optional<ConeClass> pacsim_class(std::string_view name) {
-  if (name == "blue") return ConeClass::kBlue;
-  if (name == "yellow") return ConeClass::kYellow;
-  if (name == "small-orange") return ConeClass::kOrangeSmall;
-  if (name == "big-orange") return ConeClass::kOrangeBig;
-  if (name == "unknown") return ConeClass::kUnknown;
+// each format's names of the cone classes, looked up both ways
+using ClassNames = std::array<std::pair<ConeClass, std::string_view>, 5>;
+
+std::optional<ConeClass> class_named(const ClassNames& names, std::string_view name) {
+  for (const auto& [cls, n] : names)
+    if (n == name) return cls;
   return std::nullopt;
 }
 
-std::string_view pacsim_name(ConeClass cls) {
-  switch (cls) {
-    case ConeClass::kBlue:
-      return "blue";
-    case ConeClass::kYellow:
-      return "yellow";
-    case ConeClass::kOrangeSmall:
-      return "small-orange";
-    case ConeClass::kOrangeBig:
-      return "big-orange";
-    case ConeClass::kUnknown:
-      break;
-  }
+std::string_view name_of(const ClassNames& names, ConeClass cls) {
+  for (const auto& [c, n] : names)
+    if (c == cls) return n;
   return "unknown";
 }
+
+constexpr ClassNames kPacsimNames{{{ConeClass::kBlue, "blue"},
+                                   {ConeClass::kYellow, "yellow"},
+                                   {ConeClass::kOrangeSmall, "small-orange"},
+                                   {ConeClass::kOrangeBig, "big-orange"},
+                                   {ConeClass::kUnknown, "unknown"}}};
+
+std::optional<ConeClass> pacsim_class(std::string_view name) {
+  return class_named(kPacsimNames, name);
+}
+
+std::string_view pacsim_name(ConeClass cls) { return name_of(kPacsimNames, cls); }
 
 bool yaml_bool(const YAML::Node& node, const std::string& file, const std::string& what) {
   const std::string v = node.IsScalar() ? lower(node.Scalar()) : "";
@@ -614,30 +616,15 @@ Track parse_yaml(const std::string& text, std::optional<TrackFormat> format,
 // ---------------------------------------------------------------------------------------------
 // CSV
 
-std::optional<ConeClass> eufs_class(std::string_view tag) {
-  if (tag == "blue") return ConeClass::kBlue;
-  if (tag == "yellow") return ConeClass::kYellow;
-  if (tag == "orange") return ConeClass::kOrangeSmall;
-  if (tag == "big_orange") return ConeClass::kOrangeBig;
-  if (tag == "unknown") return ConeClass::kUnknown;
-  return std::nullopt;
-}
+constexpr ClassNames kEufsNames{{{ConeClass::kBlue, "blue"},
+                                 {ConeClass::kYellow, "yellow"},
+                                 {ConeClass::kOrangeSmall, "orange"},
+                                 {ConeClass::kOrangeBig, "big_orange"},
+                                 {ConeClass::kUnknown, "unknown"}}};
 
-std::string_view eufs_tag(ConeClass cls) {
-  switch (cls) {
-    case ConeClass::kBlue:
-      return "blue";
-    case ConeClass::kYellow:
-      return "yellow";
-    case ConeClass::kOrangeSmall:
-      return "orange";
-    case ConeClass::kOrangeBig:
-      return "big_orange";
-    case ConeClass::kUnknown:
-      break;
-  }
-  return "unknown";
-}
+std::optional<ConeClass> eufs_class(std::string_view tag) { return class_named(kEufsNames, tag); }
+
+std::string_view eufs_tag(ConeClass cls) { return name_of(kEufsNames, cls); }
 
 std::optional<ConeClass> epfl_class(std::string_view type) {
   if (type == "small_orange" || type == "orange") return ConeClass::kOrangeSmall;
