@@ -298,6 +298,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     overlay.subtitle = summary;
     plot_track(track, s.event, options.out_dir / "run.png", &overlay);
   }
+  if (slam && options.plot) slam->write_report(options.out_dir, m);
   write_file_atomically(options.out_dir / "metrics.json", m.dump(2) + "\n");
   return result;
 }

@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <fstream>
 #include <stdexcept>
+
+#include "sim/gnuplot.hpp"
 
 namespace conesim::sim {
 
@@ -156,6 +159,7 @@ void SlamRunner::process(const DeliveredDetections& frame) {
                                : true_odometer_.back() +
                                      (truth.position() - true_path_.back().position()).norm();
   true_path_.push_back(truth);
+  estimated_path_.push_back(est);
   true_odometer_.push_back(travelled);
 
   // associations against the labels: a match is right when the landmark's majority cone is
@@ -171,8 +175,13 @@ void SlamRunner::process(const DeliveredDetections& frame) {
       int majority = -3, best = 0;
       for (const auto& [id, n] : votes)
         if (n > best) best = n, majority = id;
-      if (majority == true_id && true_id >= 0) ++da_correct_;
-      else ++da_wrong_;
+      if (majority == true_id && true_id >= 0) {
+        ++da_correct_;
+      } else {
+        ++da_wrong_;
+        wrong_association_places_.push_back(
+            truth.transform(frame.observations.cones[i].position));
+      }
     }
     ++votes[true_id];
   }
@@ -210,9 +219,7 @@ core::ConeObservations SlamRunner::observations_now(TimeUs t) const {
   return obs;
 }
 
-nlohmann::json SlamRunner::metrics() const {
-  // map: each estimated cone to its nearest true cone within the cut-off, one to one (greedy
-  // over all pairs by distance), no alignment
+std::vector<SlamRunner::MapMatch> SlamRunner::match_map() const {
   const core::Estimate e = backend_->estimate();
   struct Pair {
     double d;
@@ -226,19 +233,35 @@ nlohmann::json SlamRunner::metrics() const {
       if (d < kMatchCutoffM) pairs.push_back({d, i, j});
     }
   std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) { return a.d < b.d; });
-  std::vector<char> est_used(e.map.size(), 0), true_used(track_.cones.size(), 0);
-  std::vector<double> err2;
+  std::vector<MapMatch> matches;
+  for (const core::MapCone& c : e.map) matches.push_back({c, -1, 0.0});
+  std::vector<char> true_used(track_.cones.size(), 0);
   for (const Pair& p : pairs) {
-    if (est_used[p.est] || true_used[p.truth]) continue;
-    est_used[p.est] = true_used[p.truth] = 1;
-    err2.push_back(p.d * p.d);
+    if (matches[p.est].true_cone_id >= 0 || true_used[p.truth]) continue;
+    true_used[p.truth] = 1;
+    matches[p.est].true_cone_id = track_.cones[p.truth].id;
+    matches[p.est].error_m = p.d;
+  }
+  return matches;
+}
+
+nlohmann::json SlamRunner::metrics() const {
+  // map: matched one to one to the true cones, no alignment
+  const std::vector<MapMatch> matches = match_map();
+  std::vector<double> err2;
+  std::vector<char> true_used(static_cast<size_t>(track_.next_id()), 0);
+  for (const MapMatch& m : matches) {
+    if (m.true_cone_id < 0) continue;
+    err2.push_back(m.error_m * m.error_m);
+    true_used[m.true_cone_id] = 1;
   }
   int observed = 0, missed = 0;
-  for (size_t j = 0; j < track_.cones.size(); ++j) {
-    if (!cone_observed_[track_.cones[j].id]) continue;
+  for (const tracks::Cone& c : track_.cones) {
+    if (!cone_observed_[c.id]) continue;
     ++observed;
-    if (!true_used[j]) ++missed;
+    if (!true_used[c.id]) ++missed;
   }
+  const core::Estimate e = backend_->estimate();
   const int matched = static_cast<int>(err2.size());
   const int total_da = da_correct_ + da_wrong_;
   return {
@@ -259,6 +282,82 @@ nlohmann::json SlamRunner::metrics() const {
       {"update_ms_median", percentile(update_ms_, 0.5)},
       {"update_ms_p99", percentile(update_ms_, 0.99)},
   };
+}
+
+void SlamRunner::write_report(const std::filesystem::path& dir,
+                              const nlohmann::json& run_metrics) const {
+  // map.csv: every estimated cone with the true cone it stands for
+  const std::vector<MapMatch> matches = match_map();
+  {
+    std::ofstream csv(dir / "map.csv");
+    csv << "id,class,x_m,y_m,var_x_m2,cov_xy_m2,var_y_m2,true_cone_id,error_m\n";
+    for (const MapMatch& m : matches) {
+      const auto& c = m.estimate;
+      csv << c.id << "," << core::to_string(c.cls) << "," << c.position.x() << ","
+          << c.position.y() << "," << c.covariance(0, 0) << "," << c.covariance(0, 1) << ","
+          << c.covariance(1, 1) << "," << m.true_cone_id << "," << m.error_m << "\n";
+    }
+  }
+
+  // the map over ground truth, with the wrong associations marked
+  PlotData truth{"truth", {}}, mapped{"mapped", {}}, spurious{"spurious", {}}, wrong{"wrong", {}};
+  for (const auto& c : track_.cones) truth.rows.push_back({c.position.x(), c.position.y()});
+  for (const MapMatch& m : matches)
+    (m.true_cone_id >= 0 ? mapped : spurious)
+        .rows.push_back({m.estimate.position.x(), m.estimate.position.y()});
+  for (const auto& p : wrong_association_places_) wrong.rows.push_back({p.x(), p.y()});
+  for (PlotData* d : {&truth, &mapped, &spurious, &wrong})
+    if (d->rows.empty()) d->rows.push_back({NAN, NAN});
+  const std::string header = "set size ratio -1\nset grid\nset key outside right top\n"
+                             "set xlabel 'x [m]'\nset ylabel 'y [m]'\n";
+  render_png(header + "set title 'map over ground truth (no alignment)'\n"
+                      "plot $truth using 1:2 with points pt 6 ps 1.2 lc rgb '#808080' title 'true cones', "
+                      "$mapped using 1:2 with points pt 7 ps 0.6 lc rgb '#1f4fd8' title 'mapped', "
+                      "$spurious using 1:2 with points pt 2 ps 1.5 lc rgb '#d62728' title 'spurious', "
+                      "$wrong using 1:2 with points pt 4 ps 1.5 lc rgb '#ff7f0e' title 'wrong association'\n",
+             {truth, mapped, spurious, wrong}, dir / "slam_map.png");
+
+  // the trajectory and its error along the run
+  PlotData paths{"paths", {}}, error{"error", {}};
+  for (size_t i = 0; i < true_path_.size(); ++i) {
+    paths.rows.push_back({true_path_[i].x, true_path_[i].y, estimated_path_[i].x,
+                          estimated_path_[i].y});
+    error.rows.push_back({true_odometer_[i],
+                          (estimated_path_[i].position() - true_path_[i].position()).norm()});
+  }
+  if (paths.rows.empty()) paths.rows.push_back({NAN, NAN, NAN, NAN});
+  if (error.rows.empty()) error.rows.push_back({NAN, NAN});
+  render_png(header + "set title 'trajectory: truth and estimate'\n"
+                      "plot $paths using 1:2 with lines lw 2 lc rgb '#808080' title 'true', "
+                      "$paths using 3:4 with lines lw 1 lc rgb '#d62728' title 'estimated'\n",
+             {paths}, dir / "slam_trajectory.png");
+  render_png("set grid\nset xlabel 'distance driven [m]'\nset ylabel 'position error [m]'\n"
+             "set title 'position error of the estimate over distance (no alignment)'\n"
+             "plot $error using 1:2 with lines lw 1.5 lc rgb '#d62728' notitle\n",
+             {error}, dir / "slam_error.png", 1000, 500);
+
+  // the page: the run, the backend's figures, the figures
+  std::ofstream html(dir / "report.html");
+  html << "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>conesim report: "
+       << run_metrics.value("scenario", std::string()) << "</title>\n"
+       << "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
+          "td,th{border:1px solid #ccc;padding:4px 8px;text-align:left}</style></head><body>\n"
+       << "<h1>" << run_metrics.value("event", std::string()) << " on "
+       << run_metrics.value("track", std::string()) << " (seed "
+       << run_metrics.value("seed", 0) << ")</h1>\n<table>\n";
+  for (const char* key : {"completed", "dnf_reason", "laps", "final_time_s", "penalties",
+                          "real_time_factor"})
+    if (run_metrics.contains(key))
+      html << "<tr><th>" << key << "</th><td>" << run_metrics[key].dump() << "</td></tr>\n";
+  html << "</table>\n<h2>SLAM: " << name() << "</h2>\n<table>\n";
+  const nlohmann::json figures = metrics();
+  for (const auto& [key, value] : figures.items())
+    html << "<tr><th>" << key << "</th><td>" << value.dump() << "</td></tr>\n";
+  html << "</table>\n"
+       << "<h2>Map over ground truth</h2><img src=\"slam_map.png\" width=\"900\">\n"
+       << "<h2>Trajectory</h2><img src=\"slam_trajectory.png\" width=\"900\">\n"
+       << "<img src=\"slam_error.png\" width=\"900\">\n"
+       << "<h2>Run</h2><img src=\"run.png\" width=\"900\">\n</body></html>\n";
 }
 
 }  // namespace conesim::sim

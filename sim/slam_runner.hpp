@@ -6,6 +6,7 @@
 // update time.
 
 #include <deque>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -42,6 +43,20 @@ class SlamRunner {
   /// The backend's figures for metrics.json (keys of ARCHITECTURE.md under slam.<name>).
   nlohmann::json metrics() const;
 
+  /// An estimated map cone and the true cone it stands for (-1: spurious).
+  struct MapMatch {
+    core::MapCone estimate;
+    int true_cone_id = -1;
+    double error_m = 0.0;
+  };
+
+  /// The final map matched one to one to the true cones within the 1 m cut-off (greedy over
+  /// all pairs by distance), no alignment.
+  std::vector<MapMatch> match_map() const;
+
+  /// Writes map.csv, the map and trajectory figures and report.html into the run directory.
+  void write_report(const std::filesystem::path& dir, const nlohmann::json& run_metrics) const;
+
   std::string name() const { return backend_->name(); }
 
  private:
@@ -77,6 +92,8 @@ class SlamRunner {
   std::vector<double> position_error2_;
   std::vector<double> yaw_error2_;
   std::vector<core::Pose2> true_path_;
+  std::vector<core::Pose2> estimated_path_;
+  std::vector<core::Vec2> wrong_association_places_;
   std::vector<double> true_odometer_;
   int da_correct_ = 0;
   int da_wrong_ = 0;
