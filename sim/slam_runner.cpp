@@ -112,15 +112,20 @@ void SlamRunner::step(TimeUs t, const VehicleSim& car) {
     }
   }
   // deliver in stamp order what has arrived
+  if (in_flight_.empty()) return;
+  bool delivered = false;
   while (!in_flight_.empty()) {
     auto it = std::min_element(in_flight_.begin(), in_flight_.end(),
                                [](const auto& a, const auto& b) { return a.first < b.first; });
     if (it->first > t) break;
     delivered_.push_back(it->second);
     in_flight_.erase(it);
+    delivered = true;
   }
-  std::stable_sort(delivered_.begin(), delivered_.end(),
-                   [](const VehicleSample& a, const VehicleSample& b) { return a.stamp < b.stamp; });
+  // sensors with different latencies arrive out of stamp order: keep the queue in stamp order
+  if (delivered)
+    std::stable_sort(delivered_.begin(), delivered_.end(),
+                     [](const VehicleSample& a, const VehicleSample& b) { return a.stamp < b.stamp; });
 }
 
 void SlamRunner::feed_until(slam::Odometry& odometry, TimeUs stamp,
