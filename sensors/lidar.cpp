@@ -7,7 +7,6 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
-#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -23,35 +22,11 @@ constexpr int kClassCount = 5;
 constexpr double kGroundMarginM = 20.0;
 // rays are cut this far above the tallest cone
 constexpr double kTopSlackM = 0.01;
-
-// gaussian samples by the polar form of Box-Muller (Marsaglia) on core::uniform: no sine or
-// cosine, and both values of each pair are used
-class NormalSampler {
- public:
-  explicit NormalSampler(core::Rng& rng) : rng_(rng) {}
-  float next() {
-    if (has_spare_) {
-      has_spare_ = false;
-      return spare_;
-    }
-    float u, v, s;
-    do {
-      u = static_cast<float>(core::uniform(rng_, -1.0, 1.0));
-      v = static_cast<float>(core::uniform(rng_, -1.0, 1.0));
-      s = u * u + v * v;
-    } while (s >= 1.f || s == 0.f);
-    // single precision: a noise sample needs no more, and logf costs a third of log
-    const float f = std::sqrt(-2.f * std::log(s) / s);
-    spare_ = v * f;
-    has_spare_ = true;
-    return u * f;
-  }
-
- private:
-  core::Rng& rng_;
-  bool has_spare_ = false;
-  float spare_ = 0.f;
-};
+// columns whose nearby cones are sought together (about 6 degrees of a VLP-16 sweep)
+constexpr int kChunkColumns = 32;
+// a cone's footprint is widened by this before a ray is judged to pass clear of it: far more
+// than the rounding of the single-precision tests, far less than the gap between cones
+constexpr float kFootprintSlackM = 0.01f;
 
 // how far a ray can find anything: down to just past the ground plane, or up to where it
 // climbs above the tallest cone (0 when it starts above everything and does not descend)
@@ -86,6 +61,39 @@ RTCGeometry make_triangle_geometry(RTCDevice device, const std::vector<Eigen::Ve
   return geom;
 }
 
+// A horizontal fan of rays, as seen from above: every ray starts within `spread` of the origin,
+// runs at most `reach` and heads within the angle atan(tan_half_angle) of the unit axis
+// (wide: any heading). may_meet() is conservative: false only when no ray comes within r of c.
+struct Fan {
+  float origin_x = 0.f, origin_y = 0.f;
+  float axis_x = 1.f, axis_y = 0.f;
+  float reach = 0.f;
+  float spread = 0.f;
+  float tan_half_angle = 0.f;
+  bool wide = false;
+
+  bool may_meet(float cx, float cy, float r) const {
+    // the disk widened by the spread of the origins, against a sector from the mean origin
+    const float wx = cx - origin_x, wy = cy - origin_y;
+    const float rr = r + spread;
+    if (wide) return wx * wx + wy * wy <= (reach + rr) * (reach + rr);
+    // along the axis the sector covers [0, reach]; across it, |across| <= along tan(half)
+    const float along = wx * axis_x + wy * axis_y;
+    if (along < -rr || along > reach + rr) return false;
+    const float across = std::abs(wx * axis_y - wy * axis_x);
+    return across <= rr + (along + rr) * tan_half_angle;
+  }
+};
+
+// tangent of the angle between a horizontal direction and a unit axis (wide past 60 degrees)
+bool tan_angle_to(float dx, float dy, float axis_x, float axis_y, float& tan_angle) {
+  const float along = dx * axis_x + dy * axis_y;
+  const float across = std::abs(dx * axis_y - dy * axis_x);
+  if (!(along > 0.5f * std::sqrt(dx * dx + dy * dy))) return false;
+  tan_angle = across / along;
+  return true;
+}
+
 }  // namespace
 
 struct Lidar::Impl {
@@ -94,122 +102,147 @@ struct Lidar::Impl {
     float cos_elevation;
     float sin_elevation;
   };
-  // what a geometry id stands for: a cone (with its class) or the ground
-  struct GeometryInfo {
-    int cone_id = core::PointCloudLabels::kGroundLabel;
-    int cls = -1;
+  // a cone of the track: its instance in the scene, its footprint and its label
+  struct SceneCone {
+    int cone_id = 0;
+    int cls = 0;
+    unsigned instance = RTC_INVALID_GEOMETRY_ID;
+    float x = 0.f, y = 0.f;
+    // every point of the cone lies within this horizontal distance of (x, y), and below top_m
+    float footprint_m = 0.f;
+    float top_m = 0.f;
     bool present = true;
   };
 
   LidarConfig config;
   RTCDevice device = nullptr;
+  // the track: the ground and one instance per cone of its class's scene
   RTCScene scene = nullptr;
+  std::array<RTCScene, kClassCount> class_scenes{};
   std::vector<Channel> channels;
   std::vector<float> column_cos;
   std::vector<float> column_sin;
   std::vector<core::TimeUs> column_offset_us;
   std::array<float, kSurfaceMaterialCount> reflectivity{};
-  std::array<std::vector<SurfaceMaterial>, kClassCount> class_materials;
-  std::vector<GeometryInfo> geometries;
+  // reflectivity of each triangle of each class's mesh
+  std::array<std::vector<float>, kClassCount> class_reflectivity;
+  std::vector<SceneCone> cones;
+  // what each geometry of the scene is: a cone (index into cones) or the ground (-1)
+  std::vector<int> cone_of_geometry;
+  std::unordered_map<int, int> cone_index;
+  // the ground quad, for the rays that can only meet the ground
+  float ground_lo_x = 0.f, ground_lo_y = 0.f, ground_hi_x = 0.f, ground_hi_y = 0.f;
   // nothing in the scene is higher than this: rays are cut where they climb above it
   float scene_top_z = 0.f;
-  std::unordered_map<int, unsigned> cone_geometry;
+  float inverse_squared_falloff = 0.f;
+  // the mount as a rotation and a translation
+  Eigen::Matrix3d mount_rotation = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d mount_translation = Eigen::Vector3d::Zero();
 
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
+    for (RTCScene s : class_scenes)
+      if (s) rtcReleaseScene(s);
     if (device) rtcReleaseDevice(device);
   }
 
-  // a packet of rays with their directions in the sensor frame and the lanes in use
+  // the rays of a chunk of columns and what each met (label kNoReturn: nothing)
+  static constexpr int kNoReturn = std::numeric_limits<int>::min();
+  struct ChunkRays {
+    std::vector<float> dir_x, dir_y, dir_z, length;
+    std::vector<float> range, intensity;
+    std::vector<int> label;
+    std::array<Eigen::Vector3f, kChunkColumns> origin;
+    std::array<bool, kChunkColumns> near_cone{};
+    explicit ChunkRays(size_t n)
+        : dir_x(n), dir_y(n), dir_z(n), length(n), range(n), intensity(n), label(n) {}
+  };
+  // up to 16 rays near cones, cast together through the scene, and their places in the chunk
   struct Packet {
     RTCRayHit16 rays;
     std::array<int, kPacketSize> valid{};
-    std::array<Eigen::Vector3f, kPacketSize> local_dir;
+    std::array<int, kPacketSize> slot{};
+    int lanes = 0;
   };
 
   void build_beams();
   void build_scene(const tracks::Track& track);
   void throw_on_device_error(const char* what) const;
-  void aim_packet(const core::Pose3& pose, int column, int first, int lanes, Packet& packet) const;
-  std::optional<core::LidarPoint> measure(const Packet& packet, int lane, core::Rng& rng,
-                                          NormalSampler& normal, LidarSweepStats& stats) const;
+  float intensity_of(float reflectivity_of_surface, float cos_incidence, float range) const;
+  void add_to_packet(Packet& packet, const ChunkRays& rays, int slot,
+                     const Eigen::Vector3f& origin) const;
+  void cast_packet(Packet& packet, RTCIntersectContext& context, ChunkRays& rays,
+                   LidarSweepStats& stats) const;
 };
 
-void Lidar::Impl::aim_packet(const core::Pose3& pose, int column, int first, int lanes,
-                             Packet& packet) const {
-  const Eigen::Matrix3f rotation = pose.orientation.toRotationMatrix().cast<float>();
-  const Eigen::Vector3f origin = pose.position.cast<float>();
-  const float max_range = static_cast<float>(config.max_range_m);
-  RTCRay16& ray = packet.rays.ray;
-  for (int i = 0; i < kPacketSize; ++i) {
-    // lanes past the column's last beam stay idle
-    packet.valid[i] = i < lanes ? -1 : 0;
-    packet.rays.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
-    if (i >= lanes) continue;
-
-    // the beam's direction in the sensor frame and in the track frame
-    const Channel& ch = channels[first + i];
-    packet.local_dir[i] = {ch.cos_elevation * column_cos[column],
-                           ch.cos_elevation * column_sin[column], ch.sin_elevation};
-    const Eigen::Vector3f d = rotation * packet.local_dir[i];
-
-    // the ray, as long as it can find anything (a beam that cannot is not cast)
-    ray.org_x[i] = origin.x();
-    ray.org_y[i] = origin.y();
-    ray.org_z[i] = origin.z();
-    ray.dir_x[i] = d.x();
-    ray.dir_y[i] = d.y();
-    ray.dir_z[i] = d.z();
-    ray.tnear[i] = 0.f;
-    ray.tfar[i] = ray_length(origin.z(), d.z(), max_range, scene_top_z);
-    if (ray.tfar[i] <= 0.f) packet.valid[i] = 0;
-    ray.time[i] = 0.f;
-    ray.mask[i] = 0xFFFFFFFFu;
-    ray.id[i] = static_cast<unsigned>(i);
-    ray.flags[i] = 0;
-  }
+float Lidar::Impl::intensity_of(float reflectivity_of_surface, float cos_incidence,
+                                float range) const {
+  // the material's reflectivity, times the cosine of incidence and the range fall-off
+  return 255.f * reflectivity_of_surface * cos_incidence /
+         (1.f + range * range * inverse_squared_falloff);
 }
 
-std::optional<core::LidarPoint> Lidar::Impl::measure(const Packet& packet, int lane, core::Rng& rng,
-                                                     NormalSampler& normal,
-                                                     LidarSweepStats& stats) const {
+void Lidar::Impl::add_to_packet(Packet& packet, const ChunkRays& rays, int slot,
+                                const Eigen::Vector3f& origin) const {
+  const int i = packet.lanes++;
+  RTCRay16& ray = packet.rays.ray;
+  packet.valid[i] = -1;
+  packet.slot[i] = slot;
+  packet.rays.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+  packet.rays.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+  ray.org_x[i] = origin.x();
+  ray.org_y[i] = origin.y();
+  ray.org_z[i] = origin.z();
+  ray.dir_x[i] = rays.dir_x[slot];
+  ray.dir_y[i] = rays.dir_y[slot];
+  ray.dir_z[i] = rays.dir_z[slot];
+  ray.tnear[i] = 0.f;
+  ray.tfar[i] = rays.length[slot];
+  ray.time[i] = 0.f;
+  ray.mask[i] = 0xFFFFFFFFu;
+  ray.id[i] = static_cast<unsigned>(i);
+  ray.flags[i] = 0;
+}
+
+void Lidar::Impl::cast_packet(Packet& packet, RTCIntersectContext& context, ChunkRays& rays,
+                              LidarSweepStats& stats) const {
+  if (packet.lanes == 0) return;
+  // idle lanes stay invalid, with a harmless ray: Embree's packet kernels may still read them
+  RTCRay16& idle = packet.rays.ray;
+  for (int i = packet.lanes; i < kPacketSize; ++i) {
+    packet.valid[i] = 0;
+    idle.org_x[i] = idle.org_y[i] = idle.org_z[i] = 0.f;
+    idle.dir_x[i] = idle.dir_y[i] = 0.f;
+    idle.dir_z[i] = 1.f;
+    idle.tnear[i] = idle.tfar[i] = idle.time[i] = 0.f;
+    idle.mask[i] = 0u;
+    idle.id[i] = idle.flags[i] = 0u;
+    packet.rays.hit.geomID[i] = packet.rays.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+  }
+  rtcIntersect16(packet.valid.data(), scene, &context, &packet.rays);
+  stats.traced += packet.lanes;
+
+  // each lane's hit: the ground or a cone instance, its range and intensity before noise
   const RTCRay16& ray = packet.rays.ray;
   const RTCHit16& hit = packet.rays.hit;
-
-  // a return, unless the dropout takes it
-  ++stats.hits;
-  if (config.dropout_probability > 0.0 &&
-      core::uniform(rng, 0.0, 1.0) < config.dropout_probability) {
-    ++stats.dropped;
-    return std::nullopt;
+  for (int i = 0; i < packet.lanes; ++i) {
+    const int slot = packet.slot[i];
+    rays.label[slot] = kNoReturn;
+    if (hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
+    const unsigned geometry =
+        hit.instID[0][i] != RTC_INVALID_GEOMETRY_ID ? hit.instID[0][i] : hit.geomID[i];
+    const int cone = cone_of_geometry[geometry];
+    const float surface = cone < 0 ? reflectivity[static_cast<int>(SurfaceMaterial::kGround)]
+                                   : class_reflectivity[cones[cone].cls][hit.primID[i]];
+    // the instances only translate, so the normal is the same in the track frame
+    const Eigen::Vector3f normal(hit.Ng_x[i], hit.Ng_y[i], hit.Ng_z[i]);
+    const Eigen::Vector3f dir(ray.dir_x[i], ray.dir_y[i], ray.dir_z[i]);
+    const float cos_incidence = std::abs(dir.dot(normal)) / normal.norm();
+    rays.label[slot] = cone < 0 ? core::PointCloudLabels::kGroundLabel : cones[cone].cone_id;
+    rays.range[slot] = ray.tfar[i];
+    rays.intensity[slot] = intensity_of(surface, cos_incidence, ray.tfar[i]);
   }
-
-  // range noise; a noisy range outside the sensor's window is no return
-  const float range = ray.tfar[lane];
-  const float sigma = static_cast<float>(config.range_noise_sigma_m);
-  const float measured = sigma > 0.f ? range + sigma * normal.next() : range;
-  if (measured < config.min_range_m || measured > config.max_range_m) {
-    ++stats.out_of_range;
-    return std::nullopt;
-  }
-
-  // intensity: the material's reflectivity, times the cosine of incidence and the range
-  // fall-off, plus noise
-  const GeometryInfo& info = geometries[hit.geomID[lane]];
-  const SurfaceMaterial material =
-      info.cls < 0 ? SurfaceMaterial::kGround : class_materials[info.cls][hit.primID[lane]];
-  const Eigen::Vector3f surface_normal(hit.Ng_x[lane], hit.Ng_y[lane], hit.Ng_z[lane]);
-  const Eigen::Vector3f dir(ray.dir_x[lane], ray.dir_y[lane], ray.dir_z[lane]);
-  const float cos_incidence = std::abs(dir.dot(surface_normal)) / surface_normal.norm();
-  const float falloff = static_cast<float>(config.intensity_falloff_m);
-  float intensity = 255.f * reflectivity[static_cast<int>(material)] * cos_incidence /
-                    (1.f + (range * range) / (falloff * falloff));
-  if (config.intensity_noise_sigma > 0.0)
-    intensity += static_cast<float>(config.intensity_noise_sigma) * normal.next();
-
-  // the point in the sensor frame of its column (ring and time are the caller's)
-  const Eigen::Vector3f p = packet.local_dir[lane] * measured;
-  return core::LidarPoint{p.x(), p.y(), p.z(), std::clamp(intensity, 0.f, 255.f), 0, 0.f};
+  packet.lanes = 0;
 }
 
 void Lidar::Impl::build_beams() {
@@ -232,6 +265,12 @@ void Lidar::Impl::build_beams() {
     column_offset_us.push_back(period * c / config.columns);
   }
 
+  // the mount and the intensity fall-off
+  mount_rotation = config.mount.orientation.normalized().toRotationMatrix();
+  mount_translation = config.mount.position;
+  inverse_squared_falloff =
+      static_cast<float>(1.0 / (config.intensity_falloff_m * config.intensity_falloff_m));
+
   // reflectivity per material
   for (int m = 0; m < kSurfaceMaterialCount; ++m)
     reflectivity[m] = static_cast<float>(config.reflectivity.of(static_cast<SurfaceMaterial>(m)));
@@ -241,8 +280,8 @@ void Lidar::Impl::build_scene(const tracks::Track& track) {
   device = rtcNewDevice("threads=1");
   if (!device) throw std::runtime_error("lidar: Embree device could not be created");
   scene = rtcNewScene(device);
-  // medium quality: rays are as fast as with a high-quality build here, and a knocked cone's
-  // rebuild is a quarter cheaper
+  // the top level holds a few hundred instances: a knocked cone rebuilds it in well under a
+  // millisecond, while the class meshes below it are never rebuilt
   rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_MEDIUM);
 
   // ground: one quad over the cones and the start pose, reaching the max range beyond them
@@ -254,39 +293,55 @@ void Lidar::Impl::build_scene(const tracks::Track& track) {
   const double margin = config.max_range_m + kGroundMarginM;
   lo.array() -= margin;
   hi.array() += margin;
-  const std::vector<Eigen::Vector3f> ground_vertices{
-      {static_cast<float>(lo.x()), static_cast<float>(lo.y()), 0.f},
-      {static_cast<float>(hi.x()), static_cast<float>(lo.y()), 0.f},
-      {static_cast<float>(hi.x()), static_cast<float>(hi.y()), 0.f},
-      {static_cast<float>(lo.x()), static_cast<float>(hi.y()), 0.f}};
+  ground_lo_x = static_cast<float>(lo.x());
+  ground_lo_y = static_cast<float>(lo.y());
+  ground_hi_x = static_cast<float>(hi.x());
+  ground_hi_y = static_cast<float>(hi.y());
+  const std::vector<Eigen::Vector3f> ground_vertices{{ground_lo_x, ground_lo_y, 0.f},
+                                                     {ground_hi_x, ground_lo_y, 0.f},
+                                                     {ground_hi_x, ground_hi_y, 0.f},
+                                                     {ground_lo_x, ground_hi_y, 0.f}};
   RTCGeometry ground = make_triangle_geometry(device, ground_vertices, {{0, 1, 2}, {0, 2, 3}});
   const unsigned ground_id = rtcAttachGeometry(scene, ground);
   rtcReleaseGeometry(ground);
-  geometries.resize(ground_id + 1);
+  cone_of_geometry.assign(ground_id + 1, -1);
 
-  // one mesh per class, its materials shared by every cone of the class
-  std::array<ConeMesh, kClassCount> meshes;
+  // one scene per class, built once at high quality, its materials shared by its cones
+  std::array<float, kClassCount> footprint{};
   for (int k = 0; k < kClassCount; ++k) {
-    meshes[k] =
-        build_cone_mesh(cone_shape(static_cast<core::ConeClass>(k)), config.cone_mesh_sides);
-    class_materials[k] = meshes[k].materials;
+    const ConeShape shape = cone_shape(static_cast<core::ConeClass>(k));
+    const ConeMesh mesh = build_cone_mesh(shape, config.cone_mesh_sides);
+    for (SurfaceMaterial m : mesh.materials)
+      class_reflectivity[k].push_back(reflectivity[static_cast<int>(m)]);
+    footprint[k] = static_cast<float>(
+        std::max(shape.plate_width_m * std::numbers::sqrt2 / 2.0, shape.body_bottom_radius_m));
+    class_scenes[k] = rtcNewScene(device);
+    rtcSetSceneBuildQuality(class_scenes[k], RTC_BUILD_QUALITY_HIGH);
+    RTCGeometry geom = make_triangle_geometry(device, mesh.vertices, mesh.triangles);
+    rtcAttachGeometry(class_scenes[k], geom);
+    rtcReleaseGeometry(geom);
+    rtcCommitScene(class_scenes[k]);
   }
 
-  // every cone: its class mesh moved to the cone's place, one geometry each
+  // every cone: an instance of its class's scene moved to the cone's place
   for (const tracks::Cone& cone : track.cones) {
     const int k = class_index(cone.cls);
-    std::vector<Eigen::Vector3f> vertices = meshes[k].vertices;
-    const Eigen::Vector3f offset(static_cast<float>(cone.position.x()),
-                                 static_cast<float>(cone.position.y()), 0.f);
-    for (Eigen::Vector3f& v : vertices) v += offset;
-    RTCGeometry geom = make_triangle_geometry(device, vertices, meshes[k].triangles);
-    const unsigned id = rtcAttachGeometry(scene, geom);
-    rtcReleaseGeometry(geom);
-    if (geometries.size() <= id) geometries.resize(id + 1);
-    geometries[id] = {cone.id, k, true};
+    const float x = static_cast<float>(cone.position.x());
+    const float y = static_cast<float>(cone.position.y());
+    const float transform[12] = {1.f, 0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, x, y, 0.f};
+    RTCGeometry instance = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+    rtcSetGeometryInstancedScene(instance, class_scenes[k]);
+    rtcSetGeometryTransform(instance, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, transform);
+    rtcCommitGeometry(instance);
+    const unsigned id = rtcAttachGeometry(scene, instance);
+    rtcReleaseGeometry(instance);
+    if (cone_of_geometry.size() <= id) cone_of_geometry.resize(id + 1, -1);
+    cone_of_geometry[id] = static_cast<int>(cones.size());
+    cone_index[cone.id] = static_cast<int>(cones.size());
+    const float top = static_cast<float>(cone_shape(cone.cls).height_m + kTopSlackM);
+    cones.push_back({cone.id, k, id, x, y, footprint[k], top, true});
     scene_top_z =
         std::max(scene_top_z, static_cast<float>(cone_shape(cone.cls).height_m + kTopSlackM));
-    cone_geometry[cone.id] = id;
   }
   rtcCommitScene(scene);
   throw_on_device_error("building the scene");
@@ -317,26 +372,26 @@ const LidarConfig& Lidar::config() const {
 }
 
 void Lidar::set_cone_present(int cone_id, bool present) {
-  const auto it = impl_->cone_geometry.find(cone_id);
-  if (it == impl_->cone_geometry.end())
+  const auto it = impl_->cone_index.find(cone_id);
+  if (it == impl_->cone_index.end())
     throw std::out_of_range("lidar: no cone with id " + std::to_string(cone_id));
-  Impl::GeometryInfo& info = impl_->geometries[it->second];
-  if (info.present == present) return;
+  Impl::SceneCone& cone = impl_->cones[it->second];
+  if (cone.present == present) return;
 
-  // enabling or disabling a geometry takes effect at the next scene commit
-  info.present = present;
-  RTCGeometry geom = rtcGetGeometry(impl_->scene, it->second);
+  // enabling or disabling an instance takes effect when the top level is committed again
+  cone.present = present;
+  RTCGeometry instance = rtcGetGeometry(impl_->scene, cone.instance);
   if (present)
-    rtcEnableGeometry(geom);
+    rtcEnableGeometry(instance);
   else
-    rtcDisableGeometry(geom);
+    rtcDisableGeometry(instance);
   rtcCommitScene(impl_->scene);
   impl_->throw_on_device_error("updating the scene");
 }
 
 bool Lidar::cone_present(int cone_id) const {
-  const auto it = impl_->cone_geometry.find(cone_id);
-  return it != impl_->cone_geometry.end() && impl_->geometries[it->second].present;
+  const auto it = impl_->cone_index.find(cone_id);
+  return it != impl_->cone_index.end() && impl_->cones[it->second].present;
 }
 
 core::TimeUs Lidar::column_time(core::TimeUs sweep_start, int column) const {
@@ -356,6 +411,7 @@ LidarScan Lidar::sweep(core::TimeUs sweep_start, const PoseHistory& vehicle_pose
   const Impl& im = *impl_;
   const LidarConfig& cfg = im.config;
   const int channel_count = static_cast<int>(im.channels.size());
+  const float max_range = static_cast<float>(cfg.max_range_m);
 
   // the poses must span every column's firing time
   const core::TimeUs end = sweep_end(sweep_start);
@@ -370,43 +426,225 @@ LidarScan Lidar::sweep(core::TimeUs sweep_start, const PoseHistory& vehicle_pose
     throw std::invalid_argument(msg.str());
   }
 
-  // the scan, its labels and the sensor poses at the first and last columns
+  // the scan, its labels and the sensor poses at the first and last columns; room for a
+  // return from every ray, so that the cloud never moves while it grows
   LidarScan scan;
   scan.cloud.stamp = sweep_start;
-  scan.cloud.points.reserve(static_cast<size_t>(cfg.columns) * channel_count / 2);
+  scan.cloud.points.reserve(static_cast<size_t>(cfg.columns) * channel_count);
   scan.labels.cone_id.reserve(scan.cloud.points.capacity());
   scan.labels.sensor_pose_start = sensor_pose(vehicle_poses.at(sweep_start));
   scan.labels.sensor_pose_end = sensor_pose(vehicle_poses.at(end));
 
+  // the cones standing, for the test of which rays pass near one
+  std::vector<const Impl::SceneCone*> standing;
+  standing.reserve(im.cones.size());
+  for (const Impl::SceneCone& cone : im.cones)
+    if (cone.present) standing.push_back(&cone);
+  std::vector<const Impl::SceneCone*> chunk_cones, column_cones;
+  const float ground_reflectivity = im.reflectivity[static_cast<int>(SurfaceMaterial::kGround)];
+
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-  NormalSampler normal(rng);
+  Impl::ChunkRays rays(static_cast<size_t>(kChunkColumns) * channel_count);
   Impl::Packet packet;
+  std::array<Fan, kChunkColumns> column_fans;
+  size_t pose_cursor = 0;
+  core::ZigguratNormals normal(rng);
+  const float range_sigma = static_cast<float>(cfg.range_noise_sigma_m);
+  const float intensity_sigma = static_cast<float>(cfg.intensity_noise_sigma);
+  const float min_range = static_cast<float>(cfg.min_range_m);
+  const bool dropout = cfg.dropout_probability > 0.0;
 
-  for (int c = 0; c < cfg.columns; ++c) {
-    // the sensor pose when this column fires
-    const core::TimeUs offset_us = im.column_offset_us[c];
-    const core::Pose3 pose = sensor_pose(vehicle_poses.at(sweep_start + offset_us));
-    const float time_offset_s = static_cast<float>(core::to_seconds(offset_us));
+  for (int c0 = 0; c0 < cfg.columns; c0 += kChunkColumns) {
+    const int chunk = std::min(kChunkColumns, cfg.columns - c0);
 
-    for (int first = 0; first < channel_count; first += kPacketSize) {
-      // one packet of up to 16 beams of the column, cast together
-      const int lanes = std::min(kPacketSize, channel_count - first);
-      im.aim_packet(pose, c, first, lanes, packet);
-      rtcIntersect16(packet.valid.data(), im.scene, &context, &packet.rays);
-      scan.stats.rays += lanes;
+    // every ray of the chunk's columns from the sensor pose when its column fires, and each
+    // column's fan of rays seen from above
+    for (int j = 0; j < chunk; ++j) {
+      const int c = c0 + j;
+      const core::Pose3 vehicle =
+          vehicle_poses.at(sweep_start + im.column_offset_us[c], pose_cursor);
+      const Eigen::Matrix3d vehicle_rotation = vehicle.orientation.toRotationMatrix();
+      const Eigen::Matrix3f rotation = (vehicle_rotation * im.mount_rotation).cast<float>();
+      const Eigen::Vector3f origin =
+          (vehicle.position + vehicle_rotation * im.mount_translation).cast<float>();
+      // the column's horizontal heading and the sensor's up axis, in the track frame
+      const Eigen::Vector3f heading =
+          im.column_cos[c] * rotation.col(0) + im.column_sin[c] * rotation.col(1);
+      const Eigen::Vector3f up = rotation.col(2);
+      rays.origin[j] = origin;
+      Fan& fan = column_fans[j];
+      fan.origin_x = origin.x();
+      fan.origin_y = origin.y();
+      fan.reach = 0.f;
+      for (int ch = 0; ch < channel_count; ++ch) {
+        const int slot = j * channel_count + ch;
+        const Impl::Channel& beam = im.channels[ch];
+        const Eigen::Vector3f d = beam.cos_elevation * heading + beam.sin_elevation * up;
+        rays.dir_x[slot] = d.x();
+        rays.dir_y[slot] = d.y();
+        rays.dir_z[slot] = d.z();
+        rays.length[slot] = ray_length(origin.z(), d.z(), max_range, im.scene_top_z);
+        fan.reach = std::max(fan.reach, rays.length[slot]);
+      }
 
-      // each hit becomes a point, unless a fault or the range window takes it
-      for (int i = 0; i < lanes; ++i) {
-        if (packet.rays.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
-        const std::optional<core::LidarPoint> point =
-            im.measure(packet, i, rng, normal, scan.stats);
-        if (!point) continue;
-        scan.cloud.points.push_back(*point);
-        scan.cloud.points.back().ring = static_cast<uint16_t>(first + i);
-        scan.cloud.points.back().time_offset_s = time_offset_s;
-        scan.labels.cone_id.push_back(im.geometries[packet.rays.hit.geomID[i]].cone_id);
+      // headings of the beams turn monotonically with elevation: the lowest and the highest
+      // bound the column's fan
+      const float norm = std::hypot(heading.x(), heading.y());
+      fan.wide = !(norm > 0.5f);
+      if (!fan.wide) {
+        fan.axis_x = heading.x() / norm;
+        fan.axis_y = heading.y() / norm;
+        float tan_low = 0.f, tan_high = 0.f;
+        const int low = j * channel_count, high = low + channel_count - 1;
+        fan.wide =
+            !tan_angle_to(rays.dir_x[low], rays.dir_y[low], fan.axis_x, fan.axis_y, tan_low) ||
+            !tan_angle_to(rays.dir_x[high], rays.dir_y[high], fan.axis_x, fan.axis_y, tan_high);
+        fan.tan_half_angle = std::max(tan_low, tan_high);
+      }
+    }
+
+    // the chunk's fan: all its columns' rays, from their mean origin and mean heading
+    Fan chunk_fan;
+    float sum_x = 0.f, sum_y = 0.f, axis_x = 0.f, axis_y = 0.f;
+    for (int j = 0; j < chunk; ++j) {
+      sum_x += column_fans[j].origin_x;
+      sum_y += column_fans[j].origin_y;
+      axis_x += column_fans[j].axis_x;
+      axis_y += column_fans[j].axis_y;
+      chunk_fan.reach = std::max(chunk_fan.reach, column_fans[j].reach);
+      chunk_fan.wide = chunk_fan.wide || column_fans[j].wide;
+    }
+    chunk_fan.origin_x = sum_x / static_cast<float>(chunk);
+    chunk_fan.origin_y = sum_y / static_cast<float>(chunk);
+    const float axis_norm = std::hypot(axis_x, axis_y);
+    chunk_fan.wide = chunk_fan.wide || !(axis_norm > 0.5f * static_cast<float>(chunk));
+    if (!chunk_fan.wide) {
+      chunk_fan.axis_x = axis_x / axis_norm;
+      chunk_fan.axis_y = axis_y / axis_norm;
+    }
+    for (int j = 0; j < chunk; ++j) {
+      chunk_fan.spread =
+          std::max(chunk_fan.spread, std::hypot(column_fans[j].origin_x - chunk_fan.origin_x,
+                                                column_fans[j].origin_y - chunk_fan.origin_y));
+    }
+    // its half angle: each column's own plus the turn of its axis from the chunk's
+    float cos_half = 1.f;
+    for (int j = 0; j < chunk && !chunk_fan.wide; ++j) {
+      const Fan& f = column_fans[j];
+      const float cos_turn = f.axis_x * chunk_fan.axis_x + f.axis_y * chunk_fan.axis_y;
+      const float sin_turn = std::abs(f.axis_x * chunk_fan.axis_y - f.axis_y * chunk_fan.axis_x);
+      const float cos_own = 1.f / std::sqrt(1.f + f.tan_half_angle * f.tan_half_angle);
+      const float sin_own = f.tan_half_angle * cos_own;
+      cos_half = std::min(cos_half, cos_turn * cos_own - sin_turn * sin_own);
+    }
+    if (!(cos_half > 0.5f)) chunk_fan.wide = true;
+    if (!chunk_fan.wide) chunk_fan.tan_half_angle = std::sqrt(1.f - cos_half * cos_half) / cos_half;
+
+    // the cones the chunk's rays may pass near
+    chunk_cones.clear();
+    for (const Impl::SceneCone* cone : standing)
+      if (chunk_fan.may_meet(cone->x, cone->y, cone->footprint_m + kFootprintSlackM))
+        chunk_cones.push_back(cone);
+
+    // each ray: through the scene when it passes near a cone (or the sensor is not above the
+    // ground), else straight to the ground
+    for (int j = 0; j < chunk; ++j) {
+      const Eigen::Vector3f& origin = rays.origin[j];
+      const bool anywhere = !(origin.z() > 0.f);
+      column_cones.clear();
+      for (const Impl::SceneCone* cone : chunk_cones)
+        if (column_fans[j].may_meet(cone->x, cone->y, cone->footprint_m + kFootprintSlackM))
+          column_cones.push_back(cone);
+      for (int ch = 0; ch < channel_count; ++ch) {
+        const int slot = j * channel_count + ch;
+        const float length = rays.length[slot];
+        bool near = anywhere;
+        // near a cone: the ray's track on the ground enters the cone's footprint, and the ray
+        // is below the cone's top somewhere over it (a steep ray is always near)
+        const float dx = rays.dir_x[slot], dy = rays.dir_y[slot];
+        const float squared = dx * dx + dy * dy;
+        for (size_t k = 0; k < column_cones.size() && !near; ++k) {
+          const Impl::SceneCone& cone = *column_cones[k];
+          const float r = cone.footprint_m + kFootprintSlackM;
+          const float wx = cone.x - origin.x(), wy = cone.y - origin.y();
+          if (!(squared > 1e-6f)) {
+            near = true;
+            break;
+          }
+          const float closest = (wx * dx + wy * dy) / squared;
+          const float t = std::clamp(closest, 0.f, length);
+          const float ex = wx - t * dx, ey = wy - t * dy;
+          if (ex * ex + ey * ey > r * r) continue;
+          // the stretch of the ray over the footprint, and its lowest point there
+          const float miss_squared = std::max(0.f, wx * wx + wy * wy - closest * closest * squared);
+          const float half = std::sqrt(std::max(0.f, r * r - miss_squared) / squared);
+          const float enter = std::max(0.f, closest - half);
+          const float leave = std::min(length, closest + half);
+          const float lowest =
+              origin.z() + rays.dir_z[slot] * (rays.dir_z[slot] > 0.f ? enter : leave);
+          near = lowest <= cone.top_m;
+        }
+        if (!near) {
+          // clear of every cone: the ground plane, if the ray descends to it within the max
+          // range and over the ground quad (the origin is above the ground)
+          rays.label[slot] = Impl::kNoReturn;
+          const float dz = rays.dir_z[slot];
+          if (!(dz < 0.f)) continue;
+          const float t = -origin.z() / dz;
+          if (t > max_range) continue;
+          const float x = origin.x() + t * dx, y = origin.y() + t * dy;
+          if (x < im.ground_lo_x || x > im.ground_hi_x || y < im.ground_lo_y || y > im.ground_hi_y)
+            continue;
+          rays.label[slot] = core::PointCloudLabels::kGroundLabel;
+          rays.range[slot] = t;
+          rays.intensity[slot] = im.intensity_of(ground_reflectivity, -dz, t);
+          continue;
+        }
+        rays.label[slot] = Impl::kNoReturn;
+        if (!(length > 0.f)) continue;
+        im.add_to_packet(packet, rays, slot, origin);
+        if (packet.lanes == kPacketSize) im.cast_packet(packet, context, rays, scan.stats);
+      }
+    }
+    im.cast_packet(packet, context, rays, scan.stats);
+
+    // each return becomes a point, in firing order, unless a fault or the range window takes it
+    for (int j = 0; j < chunk; ++j) {
+      const int c = c0 + j;
+      const float time_offset_s = static_cast<float>(core::to_seconds(im.column_offset_us[c]));
+      scan.stats.rays += channel_count;
+      for (int ch = 0; ch < channel_count; ++ch) {
+        const int slot = j * channel_count + ch;
+        const int label = rays.label[slot];
+        if (label == Impl::kNoReturn) continue;
+
+        // a return, unless the dropout takes it
+        ++scan.stats.hits;
+        if (dropout && core::uniform(rng, 0.0, 1.0) < cfg.dropout_probability) {
+          ++scan.stats.dropped;
+          continue;
+        }
+
+        // range noise; a noisy range outside the sensor's window is no return
+        const float range = rays.range[slot];
+        const float measured = range_sigma > 0.f ? range + range_sigma * normal() : range;
+        if (measured < min_range || measured > max_range) {
+          ++scan.stats.out_of_range;
+          continue;
+        }
+        float intensity = rays.intensity[slot];
+        if (intensity_sigma > 0.f) intensity += intensity_sigma * normal();
+
+        // the point in the sensor frame of its column
+        const Impl::Channel& beam = im.channels[ch];
+        const float horizontal = beam.cos_elevation * measured;
+        scan.cloud.points.push_back({horizontal * im.column_cos[c], horizontal * im.column_sin[c],
+                                     beam.sin_elevation * measured,
+                                     std::clamp(intensity, 0.f, 255.f), static_cast<uint16_t>(ch),
+                                     time_offset_s});
+        scan.labels.cone_id.push_back(label);
       }
     }
   }

@@ -31,6 +31,9 @@ struct LidarSweepStats {
   int64_t dropped = 0;
   /// Hits whose noisy range fell outside [min_range_m, max_range_m].
   int64_t out_of_range = 0;
+  /// Rays cast through the Embree scene because they pass near a standing cone; the others
+  /// can only meet the ground, which is intersected directly.
+  int64_t traced = 0;
 };
 
 /// One sweep: the data the system under test receives and the ground truth beside it.
@@ -40,8 +43,11 @@ struct LidarScan {
   LidarSweepStats stats;
 };
 
-/// A spinning LiDAR over a track. Holds the Embree scene (the state: which cones stand);
-/// the configuration never changes. sweep() may run on several threads at once, but not at
+/// A spinning LiDAR over a track. Holds the Embree scene (the state: which cones stand): the
+/// ground and one instance per cone of its class's mesh, so that knocking a cone over rebuilds
+/// only the top level. A ray whose track on the ground passes clear of every standing cone's
+/// footprint meets the ground plane analytically; only the others are cast through Embree. The
+/// configuration never changes. sweep() may run on several threads at once, but not at
 /// the same time as set_cone_present().
 class Lidar {
  public:

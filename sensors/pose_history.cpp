@@ -43,4 +43,25 @@ core::Pose3 PoseHistory::at(core::TimeUs t) const {
   return core::Pose3::interpolate(before->pose, after->pose, s);
 }
 
+core::Pose3 PoseHistory::at(core::TimeUs t, size_t& cursor) const {
+  // clamp outside the span
+  if (t <= samples_.front().t) return samples_.front().pose;
+  if (t >= samples_.back().t) return samples_.back().pose;
+
+  // the last sample at or before t: walk on from the cursor, or search when it is past t
+  if (cursor + 1 >= samples_.size() || samples_[cursor].t > t) {
+    const auto after = std::upper_bound(samples_.begin(), samples_.end(), t,
+                                        [](core::TimeUs v, const Sample& s) { return v < s.t; });
+    cursor = static_cast<size_t>(after - samples_.begin()) - 1;
+  }
+  while (samples_[cursor + 1].t <= t) ++cursor;
+
+  // the same interpolation as at(t)
+  const Sample& before = samples_[cursor];
+  const Sample& after = samples_[cursor + 1];
+  if (before.t == t) return before.pose;
+  const double s = static_cast<double>(t - before.t) / static_cast<double>(after.t - before.t);
+  return core::Pose3::interpolate(before.pose, after.pose, s);
+}
+
 }  // namespace conesim::sensors

@@ -36,6 +36,11 @@ class PoseHistory {
   /// nearest end is returned. The history must not be empty.
   core::Pose3 at(core::TimeUs t) const;
 
+  /// The same pose as at(t), for callers that visit times in increasing order (the columns of
+  /// a sweep): `cursor` starts at 0 and is passed back each time, so that the samples are
+  /// walked once instead of searched at every call.
+  core::Pose3 at(core::TimeUs t, size_t& cursor) const;
+
   /// Drops every sample.
   void clear() { samples_.clear(); }
 

@@ -77,10 +77,11 @@ void run_sweeps(benchmark::State& state, const sensors::LidarConfig& config) {
   const sensors::Lidar lidar(config, stadium());
   const sensors::PoseHistory poses = driving_poses();
   core::Rng rng(1);
-  int64_t rays = 0, points = 0;
+  int64_t rays = 0, points = 0, traced = 0;
   for (auto _ : state) {
     const sensors::LidarScan scan = lidar.sweep(0, poses, rng);
     rays += scan.stats.rays;
+    traced += scan.stats.traced;
     points += static_cast<int64_t>(scan.cloud.points.size());
     benchmark::DoNotOptimize(scan.cloud.points.data());
   }
@@ -88,6 +89,8 @@ void run_sweeps(benchmark::State& state, const sensors::LidarConfig& config) {
       benchmark::Counter(static_cast<double>(rays) * 1e-6, benchmark::Counter::kIsRate);
   state.counters["points_per_sweep"] =
       static_cast<double>(points) / static_cast<double>(state.iterations());
+  // the share of rays that pass near a cone and go through Embree
+  state.counters["traced_share"] = static_cast<double>(traced) / static_cast<double>(rays);
 }
 
 // the default VLP-16 with its datasheet noise: the figure `conesim bench sensors` quotes

@@ -136,6 +136,17 @@ TEST(PoseHistory, InterpolatesBetweenStepsAndClampsOutside) {
   EXPECT_THROW(h.push(999, Pose3{}), std::invalid_argument);
 }
 
+TEST(PoseHistory, TheCursorGivesTheSamePosesAsTheSearch) {
+  PoseHistory h;
+  for (TimeUs t = 0; t <= 20'000; t += 1000) h.push(t, planar_pose(1e-4 * t, 0.0, 2e-5 * t));
+  size_t cursor = 0;
+  for (TimeUs t : {-10, 0, 1, 999, 1000, 1500, 7777, 19'999, 20'000, 25'000, 3000, 12'345}) {
+    const Pose3 a = h.at(t), b = h.at(t, cursor);
+    EXPECT_EQ(a.position, b.position) << t;
+    EXPECT_EQ(a.orientation.coeffs(), b.orientation.coeffs()) << t;
+  }
+}
+
 TEST(PoseHistory, ForgetsSamplesOlderThanTheWindow) {
   PoseHistory h(10'000);
   for (TimeUs t = 0; t <= 100'000; t += 1000) h.push(t, planar_pose(1e-5 * t, 0.0, 0.0));
@@ -423,6 +434,96 @@ TEST(Lidar, SameSeedSameScan) {
   for (size_t i = 0; !differs && i < a.cloud.points.size(); ++i)
     differs = a.cloud.points[i].x != c.cloud.points[i].x;
   EXPECT_TRUE(differs);
+}
+
+// A pitched, rolled car (the rays of a column no longer share one heading seen from above):
+// every labelled point still lies on what it hit and every cone within 8 m is seen, so the
+// rays judged clear of every cone really were.
+TEST(Lidar, ATiltedCarStillSeesEveryNearCone) {
+  const tracks::Track track = ring_of_cones();
+  LidarConfig config = noiseless();
+  Pose3 tilted = planar_pose(0.0, 0.0, 0.4);
+  tilted.position.z() = 0.05;
+  tilted.orientation = tilted.orientation *
+                       Eigen::AngleAxisd(3.0 * kDeg, Eigen::Vector3d::UnitY()) *
+                       Eigen::AngleAxisd(-4.0 * kDeg, Eigen::Vector3d::UnitX());
+  const Lidar lidar(config, track);
+  const PoseHistory poses = drive(tilted, 0.0, 0, 200'000);
+  core::Rng rng(9);
+  const LidarScan scan = lidar.sweep(0, poses, rng);
+
+  const double tolerance = facet_deviation_m(cone_shape(ConeClass::kOrangeBig), 24) + 1e-4;
+  std::vector<int> per_cone(track.cones.size() + 1, 0);
+  for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+    const Eigen::Vector3d p = in_track(lidar, poses, scan.cloud, scan.cloud.points[i]);
+    const int id = scan.labels.cone_id[i];
+    if (id == core::PointCloudLabels::kGroundLabel) {
+      ASSERT_NEAR(p.z(), 0.0, 1e-4) << "ground point " << i;
+      continue;
+    }
+    const tracks::Cone& cone = track.cone(id);
+    const Eigen::Vector3d local = p - Eigen::Vector3d(cone.position.x(), cone.position.y(), 0.0);
+    ASSERT_LT(cone_shape(cone.cls).surface_distance(local), tolerance) << "cone " << id;
+    ++per_cone[id];
+  }
+  const Eigen::Vector3d sensor = lidar.sensor_pose(tilted).position;
+  for (const tracks::Cone& cone : track.cones) {
+    if ((cone.position - sensor.head<2>()).norm() < 8.0) {
+      EXPECT_GT(per_cone[cone.id], 0) << cone.id;
+    }
+  }
+  // only the rays near a cone went through the scene
+  EXPECT_GT(scan.stats.traced, 0);
+  EXPECT_LT(scan.stats.traced, scan.stats.rays / 2);
+}
+
+// ---------------------------------------------------------------------------------------------
+// the noise sampler (core::ziggurat_normal and core::ZigguratNormals)
+
+// The moments and the tails of n samples against the standard normal's: the mean within five
+// standard errors (1 / sqrt(n)), the variance within five of its own (sqrt(2 / n)), the share
+// beyond 2 and beyond R = 3.654 (the ziggurat's tail) within five binomial sigmas.
+template <typename Sample>
+void expect_standard_normal(Sample sample, const char* name) {
+  constexpr int n = 400'000;
+  double sum = 0.0, sum_sq = 0.0;
+  int beyond_two = 0, in_tail = 0;
+  for (int i = 0; i < n; ++i) {
+    const double x = sample();
+    sum += x;
+    sum_sq += x * x;
+    beyond_two += std::abs(x) > 2.0;
+    in_tail += std::abs(x) > 3.6541528853610088;
+  }
+  const double mean = sum / n, variance = sum_sq / n - mean * mean;
+  EXPECT_NEAR(mean, 0.0, 5.0 / std::sqrt(n)) << name;
+  EXPECT_NEAR(variance, 1.0, 5.0 * std::sqrt(2.0 / n)) << name;
+  auto expect_share = [&](int count, double p, const char* what) {
+    EXPECT_NEAR(count, n * p, 5.0 * std::sqrt(n * p * (1.0 - p))) << name << " " << what;
+  };
+  expect_share(beyond_two, 0.0455002638963584, "beyond 2");
+  expect_share(in_tail, 2.0 * 0.5 * std::erfc(3.6541528853610088 / std::sqrt(2.0)), "tail");
+}
+
+TEST(Ziggurat, SamplesAreStandardNormal) {
+  core::Rng rng(123);
+  expect_standard_normal([&] { return core::ziggurat_normal(rng); }, "double");
+  core::ZigguratNormals normal(rng);
+  expect_standard_normal([&] { return static_cast<double>(normal()); }, "single");
+}
+
+TEST(Ziggurat, SameSeedSameSamples) {
+  core::Rng a(5), b(5), c(6);
+  core::ZigguratNormals na(a), nb(b), nc(c);
+  bool differs = false;
+  for (int i = 0; i < 1000; ++i) {
+    const float x = na(), y = nb(), z = nc();
+    ASSERT_EQ(x, y) << i;
+    differs = differs || x != z;
+  }
+  EXPECT_TRUE(differs);
+  core::Rng d(7), e(7);
+  for (int i = 0; i < 1000; ++i) ASSERT_EQ(core::ziggurat_normal(d), core::ziggurat_normal(e));
 }
 
 // ---------------------------------------------------------------------------------------------
