@@ -4,6 +4,7 @@
 // between the two Gaussians, given a stable track id, and its class decided by the colour votes
 // of the whole track. The tracking-aided association in SLAM uses the ids.
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -25,6 +26,13 @@ struct TrackerConfig {
   std::string validate() const;
 };
 
+/// Bhattacharyya distance between two Gaussians in the plane:
+/// D = 1/8 d' S^-1 d + 1/2 ln(det S / sqrt(det A det B)), with d the difference of the means
+/// and S = (A + B) / 2. Zero for identical Gaussians; the second term grows when the shapes
+/// differ even at the same mean.
+double bhattacharyya_distance(const core::Vec2& mean_a, const Eigen::Matrix2d& cov_a,
+                              const core::Vec2& mean_b, const Eigen::Matrix2d& cov_b);
+
 /// The tracker's state: live tracks with their colour votes. Deterministic; not thread-safe.
 class ConeTracker {
  public:
@@ -40,7 +48,19 @@ class ConeTracker {
   int live_tracks() const;
 
  private:
-  struct Track;
+  // One tracked cone, in the vehicle frame of the last frame (defined here, not in the .cpp:
+  // std::vector needs the complete type wherever the tracker is destroyed).
+  struct Track {
+    int id = 0;
+    core::Vec2 position = core::Vec2::Zero();
+    Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity();
+    // colour votes by class (blue, yellow, orange small, orange big); kUnknown is not counted
+    std::array<int, 4> votes{};
+    // the class decided so far (a tie keeps it)
+    core::ConeClass cls = core::ConeClass::kUnknown;
+    // frames in a row without a match
+    int missed = 0;
+  };
   TrackerConfig config_;
   std::vector<Track> tracks_;
   int next_id_ = 0;

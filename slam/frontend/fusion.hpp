@@ -23,6 +23,14 @@ struct FusionConfig {
   double camera_only_gate_m = 1.0;
   /// Add camera-only cones (off: the camera only colours).
   bool add_camera_only = true;
+  /// Height above the ground of the point of a LiDAR cone projected into the image, metres
+  /// (about mid-height of a small cone, so that it falls inside the cone's box).
+  double projection_height_m = 0.15;
+  /// A LiDAR cone takes a box's colour only when their depths along the optical axis agree
+  /// within this many of the camera cone's sigmas along its viewing ray (from its covariance)
+  /// plus depth_gate_m: a cone seen past the edge of a nearer one is not coloured by it.
+  double depth_gate_sigmas = 3.0;
+  double depth_gate_m = 0.3;
 
   /// Empty when valid, else a message naming the key and what was expected.
   std::string validate() const;

@@ -31,7 +31,87 @@ struct LidarDetectorConfig {
   bool deskew = true;
   /// Points farther than this from the sensor (horizontally) are ignored, metres.
   double max_range_m = 20.0;
-  // (the implementation adds its own tuning keys: ground, clustering, validation, colour, noise)
+  /// Points nearer than this to the sensor (horizontally) are ignored (the car's own body), m.
+  double min_range_m = 0.5;
+
+  // ground: a plane fitted by least squares to the points near the vehicle's ground plane,
+  // refitted twice on the inliers, so that pitch and roll of the car are followed
+  /// Points within this height of the vehicle frame's z = 0 are candidates for the fit, metres.
+  double ground_candidate_band_m = 0.15;
+  /// Residual of an inlier in the refits, metres.
+  double ground_inlier_m = 0.03;
+  /// Points lower than this above the fitted plane are ground, metres (range noise of 1.5 cm
+  /// moves a ground return by well under 1 cm vertically; the cones' base plates, 2-2.5 cm, go
+  /// with the ground).
+  double min_point_height_m = 0.03;
+  /// Points higher than this above the plane are not cones, metres.
+  double max_point_height_m = 0.8;
+
+  // clustering: points whose ground-projected distance is below this belong together
+  /// Linking distance, metres (cones stand at least ~2.5 m apart; one cone spans < 0.4 m).
+  double cluster_distance_m = 0.3;
+
+  // validation of a cluster as a cone
+  /// Fewest points of a cone.
+  int min_cluster_points = 3;
+  /// Widest ground-projected extent of a cone's points, metres (big cone plate 0.285 m).
+  double max_cluster_extent_m = 0.45;
+  /// Lowest and highest top of a cone's points above the ground, metres.
+  double min_cone_height_m = 0.05;
+  double max_cone_height_m = 0.6;
+  /// A cluster whose top is above this is a big cone (small cones are 0.325 m tall), metres.
+  double big_cone_min_height_m = 0.37;
+  /// Elevation step between neighbouring rings, degrees (2 for a VLP-16): used to tell whether
+  /// a big cone would have been hit by the ring above the cluster's top one.
+  double ring_spacing_deg = 2.0;
+  /// Elevation of each ring, degrees, ring 0 lowest (the LiDAR model's beam table). When set,
+  /// the ring above the top one is looked up here instead of using ring_spacing_deg (a
+  /// VLP-32C's rings are 0.33 degrees apart near the horizon, 7 degrees apart far above it).
+  std::vector<double> ring_elevations_deg;
+  /// Azimuth step between columns, degrees (0.2 for a VLP-16 at 10 Hz): when the height leaves
+  /// the size open, the width of each ring's points across the line of sight, 2 r(h) less
+  /// about one step, tells a small cone from a big one.
+  double azimuth_step_deg = 0.2;
+  /// Smallest log-likelihood lead of one size over the other from the ring widths.
+  double size_min_log_likelihood_ratio = 4.0;
+
+  // colour: which paint pattern explains the intensities along the height best
+  /// Reflectivity of the paints as the sensor is calibrated (sensors::Reflectivity defaults).
+  double reflectivity_blue = 0.15;
+  double reflectivity_yellow = 0.65;
+  double reflectivity_orange = 0.45;
+  double reflectivity_white = 0.85;
+  double reflectivity_black = 0.05;
+  /// Residual range fall-off of the intensity: gain 1 / (1 + (range / falloff)^2), metres.
+  double intensity_falloff_m = 40.0;
+  /// One-sigma noise of an intensity reading, 0-255 units.
+  double intensity_sigma = 3.0;
+  /// Relative error of the intensity model (incidence, facets), added to intensity_sigma.
+  double intensity_model_error = 0.08;
+  /// The gain fitted per hypothesis (what the model misses of incidence and calibration) is
+  /// kept within 1 +- this: wide enough for the model's errors, narrow enough that a bright
+  /// orange cannot pass for yellow (reflectivity 0.45 against 0.65).
+  double intensity_gain_tolerance = 0.15;
+  /// One-sigma error of a point's height above the fitted ground, metres: near a band edge the
+  /// point may be on either band, and both paints are weighed.
+  double height_sigma_m = 0.005;
+  /// Fewest points usable for colour (away from the silhouette and the band edges).
+  int colour_min_points = 3;
+  /// Smallest log-likelihood lead of the best paint pattern over the next one; below it the
+  /// class is kUnknown.
+  double colour_min_log_likelihood_ratio = 4.0;
+
+  // noise of the fitted centre (see covariance_of in the .cpp for the derivation)
+  /// One-sigma range noise of a return, metres (VLP-16: 0.015).
+  double range_noise_sigma_m = 0.015;
+  /// One-sigma error of the cone model (radius at a height, facets, ground fit), metres.
+  double model_sigma_m = 0.005;
+  /// One-sigma bearing error (mount calibration, timing), radians: grows the covariance with
+  /// range across the line of sight.
+  double bearing_sigma_rad = 0.002;
+  /// One-sigma relative error of the odometry speed used for de-skew: a cluster fired dt
+  /// before the sweep end is off by this x speed x dt (with de-skew off, by the whole motion).
+  double speed_relative_sigma = 0.02;
 
   /// Empty when valid, else a message naming the key and what was expected.
   std::string validate() const;

@@ -1,0 +1,367 @@
+// Tests of the LiDAR cone detector on real sweeps of a generated circuit, scored against the
+// labels: the cones within reach are found, nothing else is, their positions are cm-accurate
+// and their colours right, at rest and at speed (where de-skew matters), level or pitched.
+
+#include "slam/frontend/lidar_cone_detector.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "sensors/lidar.hpp"
+#include "sensors/pose_history.hpp"
+#include "tracks/generator.hpp"
+
+namespace conesim::slam::frontend {
+namespace {
+
+using core::ConeClass;
+using core::Pose2;
+using core::Pose3;
+using core::TimeUs;
+using core::Vec2;
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+constexpr TimeUs kSweepStart = 1'000'000;
+
+// the vehicle pose dt after `start` for constant speed and yaw rate (the truth the sweep is cast
+// from; written independently of the detector's de-skew)
+Pose2 along_arc(const Pose2& start, double speed, double yaw_rate, double dt) {
+  const double steps = 1000.0;
+  Pose2 p = start;
+  for (int k = 0; k < static_cast<int>(steps); ++k) {  // fine Euler: independent of the closed form
+    const double h = dt / steps;
+    p.x += speed * h * std::cos(p.yaw + 0.5 * yaw_rate * h);
+    p.y += speed * h * std::sin(p.yaw + 0.5 * yaw_rate * h);
+    p.yaw += yaw_rate * h;
+  }
+  return p;
+}
+
+Pose3 to_pose3(const Pose2& p, double pitch = 0.0, double roll = 0.0) {
+  Pose3 q;
+  q.position = {p.x, p.y, 0.0};
+  q.orientation = Eigen::AngleAxisd(p.yaw, Eigen::Vector3d::UnitZ()) *
+                  Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                  Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
+  return q;
+}
+
+// How one drive condition is scored: counts and sums over many sweeps.
+struct Score {
+  int true_within_15 = 0;     // cones within 15 m of the sensor
+  int visible_within_15 = 0;  // ... hit by >= 3 returns above 5 cm
+  int found_visible = 0;      // visible ones detected
+  int found_within_15 = 0;    // any within 15 m detected
+  int detections_within_15 = 0;
+  int true_detections_within_15 = 0;
+  int coloured_within_10 = 0;  // detected cones within 10 m
+  int colour_right_within_10 = 0;
+  int colour_unknown_within_10 = 0;
+  std::array<double, 4> sq_error{};  // per 5 m band of range
+  std::array<int, 4> in_band{};
+  std::array<double, 4> sigma_across{};  // sum over detections of the reported sigma across
+  double sq_error_side = 0.0;            // cones more to the side than ahead (|bearing| > 45 deg)
+  int side = 0;
+  int within_3_sigma = 0;  // errors inside the reported covariance's 3-sigma ellipse
+  int errors = 0;
+  std::vector<double> ms;
+
+  double recall_visible() const { return double(found_visible) / visible_within_15; }
+  double recall_all() const { return double(found_within_15) / true_within_15; }
+  double precision() const { return double(true_detections_within_15) / detections_within_15; }
+  double colour() const { return double(colour_right_within_10) / coloured_within_10; }
+  double rmse_band(int b) const { return in_band[b] ? std::sqrt(sq_error[b] / in_band[b]) : 0.0; }
+  double mean_sigma_across(int b) const { return in_band[b] ? sigma_across[b] / in_band[b] : 0.0; }
+  double rmse_side() const { return std::sqrt(sq_error_side / side); }
+  double rmse_within_15() const {
+    return std::sqrt((sq_error[0] + sq_error[1] + sq_error[2]) /
+                     (in_band[0] + in_band[1] + in_band[2]));
+  }
+  double median_ms() {
+    std::sort(ms.begin(), ms.end());
+    return ms[ms.size() / 2];
+  }
+  void print(const char* name) {
+    std::printf(
+        "[%s] recall within 15 m: %.3f of visible (%d/%d), %.3f of all (%d/%d); precision %.3f "
+        "(%d/%d); colour within 10 m %.3f (%d/%d, %d unknown)\n  RMSE by band 0-5/5-10/10-15/"
+        "15-20 m: %.1f/%.1f/%.1f/%.1f cm (n %d/%d/%d/%d); side cones %.1f cm; within 3 sigma "
+        "%.3f; median %.2f ms per sweep\n",
+        name, recall_visible(), found_visible, visible_within_15, recall_all(), found_within_15,
+        true_within_15, precision(), true_detections_within_15, detections_within_15, colour(),
+        colour_right_within_10, coloured_within_10, colour_unknown_within_10, 100 * rmse_band(0),
+        100 * rmse_band(1), 100 * rmse_band(2), 100 * rmse_band(3), in_band[0], in_band[1],
+        in_band[2], in_band[3], 100 * rmse_side(), double(within_3_sigma) / errors, median_ms());
+  }
+};
+
+// How the car moves through each sweep.
+struct Drive {
+  double speed_mps = 0.0;
+  double yaw_rate_rps = 0.0;
+  double pitch_rad = 0.0;
+  double roll_rad = 0.0;
+  bool deskew = true;
+};
+
+// Sweeps from `positions` poses of the circuit and scores the detections against the labels.
+Score score_track(const tracks::Track& track, const std::vector<Pose2>& starts, const Drive& drive,
+                  uint64_t seed = 1) {
+  const sensors::LidarConfig lidar_config;
+  const sensors::Lidar lidar(lidar_config, track);
+  LidarDetectorConfig config;
+  config.deskew = drive.deskew;
+  const LidarConeDetector detector(config, lidar_config.mount);
+  std::map<int, const tracks::Cone*> cone_by_id;
+  for (const tracks::Cone& cone : track.cones) cone_by_id[cone.id] = &cone;
+
+  core::Rng rng(seed);
+  Score score;
+  for (const Pose2& start : starts) {
+    // the poses every 1 ms over the sweep and a little after
+    sensors::PoseHistory poses(core::kUsPerSecond);
+    for (TimeUs t = kSweepStart; t <= kSweepStart + 120'000; t += 1000)
+      poses.push(t, to_pose3(along_arc(start, drive.speed_mps, drive.yaw_rate_rps,
+                                       core::to_seconds(t - kSweepStart)),
+                             drive.pitch_rad, drive.roll_rad));
+    const sensors::LidarScan scan = lidar.sweep(kSweepStart, poses, rng);
+
+    const auto t0 = std::chrono::steady_clock::now();
+    const LidarDetections found =
+        detector.detect(scan.cloud, {drive.speed_mps, drive.yaw_rate_rps});
+    score.ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+
+    // the truth at the detections' stamp: vehicle and sensor pose, cones in the vehicle frame
+    const Pose3 vehicle_end = poses.at(found.stamp);
+    const Pose2 vehicle2 = vehicle_end.planar();
+    const Vec2 sensor_xy = lidar.sensor_pose(vehicle_end).position.head<2>();
+
+    // returns above 5 cm per cone (track frame, each from its own column's pose)
+    std::map<int, int> raised_hits;
+    for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+      const int id = scan.labels.cone_id[i];
+      if (id < 0) continue;
+      const core::LidarPoint& p = scan.cloud.points[i];
+      const Pose3 sensor =
+          lidar.sensor_pose(poses.at(scan.cloud.stamp + core::from_seconds(p.time_offset_s)));
+      if (sensor.transform(Eigen::Vector3d(p.x, p.y, p.z)).z() > 0.05) ++raised_hits[id];
+    }
+
+    // each detection's cone: the majority label of its points; the first one of a cone counts
+    std::map<int, const LidarCone*> detection_of;
+    for (const LidarCone& cone : found.cones) {
+      std::map<int, int> votes;
+      for (const int i : cone.point_indices) ++votes[scan.labels.cone_id[i]];
+      const auto best = std::max_element(votes.begin(), votes.end(),
+                                         [](auto& a, auto& b) { return a.second < b.second; });
+      const bool real = best->first >= 0 && !detection_of.count(best->first);
+      const double range =
+          (cone.observation.position - vehicle2.inverse_transform(sensor_xy)).norm();
+      if (range < 15.0) {
+        ++score.detections_within_15;
+        if (real) ++score.true_detections_within_15;
+      }
+      if (real) detection_of[best->first] = &cone;
+    }
+
+    // each true cone: found, visible, position error, colour
+    for (const tracks::Cone& truth : track.cones) {
+      const double range = (truth.position - sensor_xy).norm();
+      if (range >= 20.0) continue;
+      const auto it = detection_of.find(truth.id);
+      const bool visible = raised_hits[truth.id] >= 3;
+      if (range < 15.0) {
+        ++score.true_within_15;
+        if (visible) ++score.visible_within_15;
+        if (it != detection_of.end()) {
+          ++score.found_within_15;
+          if (visible) ++score.found_visible;
+        }
+      }
+      if (it == detection_of.end()) continue;
+      const core::ConeObservation& seen = it->second->observation;
+      const Vec2 expected = vehicle2.inverse_transform(truth.position);
+      const Vec2 error = seen.position - expected;
+      const int band = std::min(3, static_cast<int>(range / 5.0));
+      score.sq_error[band] += error.squaredNorm();
+      const Vec2 across = Vec2(-(expected - vehicle2.inverse_transform(sensor_xy)).y(),
+                               (expected - vehicle2.inverse_transform(sensor_xy)).x())
+                              .normalized();
+      score.sigma_across[band] += std::sqrt(across.dot(seen.covariance * across));
+      ++score.in_band[band];
+      const Vec2 sensor_in_vehicle = vehicle2.inverse_transform(sensor_xy);
+      const Vec2 line = expected - sensor_in_vehicle;
+      if (std::abs(line.y()) > std::abs(line.x())) {
+        score.sq_error_side += error.squaredNorm();
+        ++score.side;
+      }
+      ++score.errors;
+      if (error.dot(seen.covariance.ldlt().solve(error)) < 9.0) ++score.within_3_sigma;
+      if (range < 10.0) {
+        ++score.coloured_within_10;
+        if (seen.cls == truth.cls) ++score.colour_right_within_10;
+        if (seen.cls == ConeClass::kUnknown) ++score.colour_unknown_within_10;
+      }
+    }
+  }
+  return score;
+}
+
+// Poses along the centre line of a generated circuit (heading to the next point), plus the
+// start pose (big orange cones ahead).
+std::vector<Pose2> poses_along(const tracks::Track& track, int count) {
+  std::vector<Pose2> poses{track.start};
+  const size_t n = track.centre_line.size();
+  for (int k = 0; k < count; ++k) {
+    const size_t i = (static_cast<size_t>(k) * n) / static_cast<size_t>(count);
+    const Vec2 a = track.centre_line[i], b = track.centre_line[(i + 1) % n];
+    poses.push_back({a.x(), a.y(), std::atan2(b.y() - a.y(), b.x() - a.x())});
+  }
+  return poses;
+}
+
+// ---------------------------------------------------------------------------------------------
+// configuration
+
+TEST(LidarDetectorConfig, DefaultsAreValidAndValidateNamesTheBadKey) {
+  EXPECT_EQ(LidarDetectorConfig{}.validate(), "");
+  LidarDetectorConfig c;
+  c.cluster_distance_m = 0.0;
+  EXPECT_EQ(c.validate().rfind("cluster_distance_m:", 0), 0u) << c.validate();
+  c = {};
+  c.min_range_m = 30.0;
+  EXPECT_EQ(c.validate().rfind("min_range_m:", 0), 0u) << c.validate();
+  c = {};
+  c.reflectivity_white = 1.2;
+  EXPECT_EQ(c.validate().rfind("reflectivity_white:", 0), 0u) << c.validate();
+  EXPECT_THROW(LidarConeDetector(c, Pose3{}), std::invalid_argument);
+}
+
+// ---------------------------------------------------------------------------------------------
+// detection on a generated circuit
+
+// Requirements (issue #6), at rest over 40 places of a generated circuit: recall >= 95 % of the
+// cones within 15 m that the beams hit, precision >= 98 %, colour right for >= 90 % of the cones
+// found within 10 m. Positions: one return has 1.5 cm range noise and a cone gets >= 3 of them,
+// so the fitted centre is good to ~1 cm plus the cone model's ~1 cm; 3 cm RMSE within 15 m
+// leaves room for the few-point clusters far out. The reported covariance must hold ~all errors
+// in its 3-sigma ellipse (for a consistent 2D Gaussian, 98.9 %; 95 % asked).
+TEST(LidarConeDetector, FindsTheConesOfAGeneratedCircuitAtRest) {
+  const tracks::Track track = tracks::generate_circuit(7);
+  Score s = score_track(track, poses_along(track, 40), {});
+  s.print("at rest");
+  EXPECT_GE(s.recall_visible(), 0.95);
+  EXPECT_GE(s.precision(), 0.98);
+  EXPECT_GE(s.colour(), 0.90);
+  EXPECT_LE(s.rmse_within_15(), 0.03);
+  EXPECT_GE(double(s.within_3_sigma) / s.errors, 0.95);
+  // the reported covariance grows with range (bearing error, fewer points)
+  EXPECT_GT(s.mean_sigma_across(1), s.mean_sigma_across(0));
+  EXPECT_GT(s.mean_sigma_across(2), s.mean_sigma_across(1));
+  std::printf("  mean sigma across the line of sight 0-5/5-10/10-15 m: %.1f/%.1f/%.1f cm\n",
+              100 * s.mean_sigma_across(0), 100 * s.mean_sigma_across(1),
+              100 * s.mean_sigma_across(2));
+}
+
+// Every class at 2.5-8 m all around a car at rest, ten sweeps with their own noise: each class
+// (orange small ones too, which generated circuits lack) is found and named right for >= 90 %
+// of its sightings, and the rest is kUnknown rather than another colour (2 % allowed).
+TEST(LidarConeDetector, TellsTheFourClassesApart) {
+  tracks::Track track;
+  const ConeClass classes[] = {ConeClass::kBlue, ConeClass::kYellow, ConeClass::kOrangeSmall,
+                               ConeClass::kOrangeBig};
+  for (int i = 0; i < 32; ++i) {
+    const double a = 2.0 * std::numbers::pi * (i + 0.5) / 32.0;
+    const double r = 2.5 + 5.5 * (i % 7) / 6.0;
+    track.cones.push_back({i, classes[i % 4], Vec2(2.1 + r * std::cos(a), r * std::sin(a)), {}});
+  }
+  std::array<Score, 4> by_class;
+  for (int k = 0; k < 4; ++k) {
+    tracks::Track one = track;
+    std::erase_if(one.cones, [&](const tracks::Cone& c) { return c.cls != classes[k]; });
+    by_class[k] = score_track(one, std::vector<Pose2>(10, Pose2{}), {}, 20 + k);
+  }
+  for (int k = 0; k < 4; ++k) {
+    Score& s = by_class[k];
+    std::printf("[%s] found %d/%d, colour right %d/%d, unknown %d\n",
+                std::string(core::to_string(classes[k])).c_str(), s.found_within_15,
+                s.true_within_15, s.colour_right_within_10, s.coloured_within_10,
+                s.colour_unknown_within_10);
+    EXPECT_EQ(s.found_within_15, s.true_within_15) << core::to_string(classes[k]);
+    EXPECT_GE(s.colour(), 0.90) << core::to_string(classes[k]);
+    EXPECT_LE(s.coloured_within_10 - s.colour_right_within_10 - s.colour_unknown_within_10,
+              0.02 * s.coloured_within_10)
+        << core::to_string(classes[k]);
+  }
+}
+
+// The same at 15 m/s along a bend (0.5 rad/s): the car moves 1.5 m during a sweep, so without
+// de-skew a cone to the side is off by up to that; with it, the cones stay where they are at
+// rest, within the de-skew error of the odometry (exact here) plus the at-rest figures.
+TEST(LidarConeDetector, DeskewKeepsConesInPlaceAt15Mps) {
+  const tracks::Track track = tracks::generate_circuit(7);
+  const std::vector<Pose2> starts = poses_along(track, 40);
+  Score on = score_track(track, starts, {15.0, 0.5, 0.0, 0.0, true});
+  Score off = score_track(track, starts, {15.0, 0.5, 0.0, 0.0, false});
+  on.print("15 m/s, de-skew");
+  off.print("15 m/s, no de-skew");
+  EXPECT_GE(on.recall_visible(), 0.95);
+  EXPECT_GE(on.precision(), 0.98);
+  EXPECT_GE(on.colour(), 0.90);
+  EXPECT_LE(on.rmse_within_15(), 0.03);
+  EXPECT_LE(on.rmse_side(), 0.03);
+  // a side cone fired on average half a sweep before the end moves by ~0.75 m without de-skew
+  EXPECT_GE(off.rmse_side(), 10.0 * on.rmse_side());
+}
+
+// At 10 m/s straight on a car pitched 1.5 degrees nose down and rolled 1 degree (braking in a
+// turn): the fitted ground follows, heights stay right, so do recall and positions. The nose-down
+// beams reach cones at 8-10 m that a level car does not see, often with 3-5 returns all on the
+// stripe, which blue and orange cones share (white): those are kUnknown by design (the tracker's
+// votes decide them as the car closes in). So here: no colour wrong (2 % allowed), and >= 90 %
+// right among the cones whose colour was decided.
+TEST(LidarConeDetector, FollowsAPitchedAndRolledCar) {
+  const tracks::Track track = tracks::generate_circuit(11);
+  Score s = score_track(track, poses_along(track, 30), {10.0, 0.0, 1.5 * kDeg, 1.0 * kDeg, true});
+  s.print("10 m/s, pitch 1.5 deg, roll 1 deg");
+  EXPECT_GE(s.recall_visible(), 0.95);
+  EXPECT_GE(s.precision(), 0.98);
+  const int decided = s.coloured_within_10 - s.colour_unknown_within_10;
+  EXPECT_LE(decided - s.colour_right_within_10, 0.02 * s.coloured_within_10);
+  EXPECT_GE(s.colour_right_within_10, 0.90 * decided);
+  EXPECT_LE(s.rmse_within_15(), 0.03);
+}
+
+// Same cloud, same detections: the detector holds no state and draws no random numbers.
+TEST(LidarConeDetector, IsDeterministic) {
+  const tracks::Track track = tracks::generate_circuit(7);
+  const sensors::LidarConfig lidar_config;
+  const sensors::Lidar lidar(lidar_config, track);
+  sensors::PoseHistory poses;
+  for (TimeUs t = 0; t <= 120'000; t += 1000) poses.push(t, to_pose3(track.start));
+  core::Rng rng(3);
+  const sensors::LidarScan scan = lidar.sweep(0, poses, rng);
+  const LidarConeDetector detector({}, lidar_config.mount);
+  const LidarDetections a = detector.detect(scan.cloud, {});
+  const LidarDetections b = detector.detect(scan.cloud, {});
+  ASSERT_EQ(a.cones.size(), b.cones.size());
+  ASSERT_GT(a.cones.size(), 4u);
+  for (size_t i = 0; i < a.cones.size(); ++i) {
+    EXPECT_EQ(a.cones[i].observation.position, b.cones[i].observation.position);
+    EXPECT_EQ(a.cones[i].point_indices, b.cones[i].point_indices);
+  }
+  EXPECT_EQ(a.stamp, core::from_seconds(0.1));
+}
+
+}  // namespace
+}  // namespace conesim::slam::frontend
