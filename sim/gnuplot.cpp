@@ -3,6 +3,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
@@ -34,6 +35,14 @@ int run_process(const std::vector<std::string>& argv, const std::filesystem::pat
 }
 
 }  // namespace
+
+std::string ranges_if_nothing_to_plot(const std::vector<PlotData>& data) {
+  for (const PlotData& d : data)
+    for (const auto& row : d.rows)
+      for (size_t k = 1; k < row.size(); ++k)
+        if (std::isfinite(row[0]) && std::isfinite(row[k])) return "";
+  return "set xrange [0:10]\nset yrange [0:1]\n";
+}
 
 void render_png(const std::string& script, const std::vector<PlotData>& data,
                 const std::filesystem::path& out_png, int width_px, int height_px) {

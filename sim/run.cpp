@@ -121,7 +121,8 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     for (const tracks::Cone& c : track.cones) prior_map.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
   }
   SensorRig rig(s, track, car, options.dump, options.out_dir);
-  const bool noisy_perception = s.perception == "cone_sensor";
+  // every perception but ground truth delivers frames with noise and latency
+  const bool noisy_perception = s.perception != "ground_truth";
   std::unique_ptr<SlamRunner> slam;
   if (s.slam != "none") slam = std::make_unique<SlamRunner>(s, track, car);
   core::Pose2 driving_pose = car.truth().pose;
@@ -201,6 +202,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
         estimate.map = map;
       }
       driving_pose = estimate.pose;
+      rig.set_motion({estimate.speed_mps, estimate.yaw_rate_rps});
       command = driver.update({estimate, obs});
       // before the go signal the car is held at the start
       if (t < start_delay_us) command = {0.0, 0.0, true};
@@ -258,7 +260,6 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       {"event", std::string(core::to_string(s.event))},
       {"track", track.name},
       {"seed", s.seed},
-      {"perception", s.perception},
       {"slam_driving", s.slam},
       {"completed", r.completed},
       {"dnf_reason", r.dnf_reason},
@@ -278,11 +279,19 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       {"passed", result.passed},
       {"pass_failures", result.failures},
       {"slam", slam ? nlohmann::json{{slam->name(), slam->metrics()}} : nlohmann::json::object()},
+      // the contract's perception figures (raw-data perception) and always the mode
+      {"perception", rig.perception() ? rig.perception()->metrics()
+                                      : nlohmann::json{{"mode", s.perception}}},
       {"sensors",
        {{"lidar_scans", rig.stats().lidar_scans},
         {"lidar_points", rig.stats().lidar_points},
         {"camera_frames", rig.stats().camera_frames},
-        {"cone_sensor_frames", rig.stats().cone_frames}}},
+        {"cone_sensor_frames", rig.stats().cone_frames},
+        {"lidar_detect_ms_mean",
+         round_to(rig.stats().lidar_detect_ms_total / std::max(1, rig.stats().lidar_scans), 1e-3)},
+        {"stereo_detect_ms_mean",
+         round_to(rig.stats().stereo_detect_ms_total / std::max(1, rig.stats().camera_frames),
+                  1e-3)}}},
   };
   result.metrics = m;
 
@@ -298,6 +307,8 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     overlay.subtitle = summary;
     plot_track(track, s.event, options.out_dir / "run.png", &overlay);
   }
+  if (rig.perception() && options.plot)
+    rig.perception()->write_plot(options.out_dir / "perception_bands.png");
   if (slam && options.plot) slam->write_report(options.out_dir, m);
   write_file_atomically(options.out_dir / "metrics.json", m.dump(2) + "\n");
   return result;

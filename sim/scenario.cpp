@@ -324,10 +324,11 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
       {"perception",
        [&](const YAML::Node& n) {
          s.perception = read_string(n, top, "perception");
-         if (s.perception != "ground_truth" && s.perception != "cone_sensor")
+         if (s.perception != "ground_truth" && s.perception != "cone_sensor" &&
+             s.perception != "lidar" && s.perception != "stereo" && s.perception != "fused")
            throw InputError(fname, top.line(n),
-                            "perception: expected ground_truth or cone_sensor (lidar, stereo and "
-                            "fused are not built yet), got '" + s.perception + "'");
+                            "perception: expected ground_truth, cone_sensor, lidar, stereo or "
+                            "fused, got '" + s.perception + "'");
        }},
       {"slam",
        [&](const YAML::Node& n) {
@@ -394,6 +395,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                                                      "sensors.lidar.model: expected vlp16, "
                                                      "vlp32c or os1-64");
                                 }},
+                               number("latency_s", ss.lidar_latency_s, c),
                                {"mount", [&](const YAML::Node& x) {
                                   ss.lidar_mount = read_string(x, c, "mount");
                                   if (!sensors::lidar_mount_preset(ss.lidar_mount))
@@ -412,6 +414,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                       {"depth",
                        [&](const YAML::Node& x) { ss.camera_depth = read_bool(x, c, "depth"); }},
                       number("rate_hz", ss.camera_rate_hz, c),
+                      number("latency_s", ss.camera_latency_s, c),
                       integer("width_px", cam.width_px, c), integer("height_px", cam.height_px, c),
                       number("horizontal_fov_deg", cam.horizontal_fov_deg, c),
                       number("baseline_m", cam.baseline_m, c),
@@ -469,9 +472,18 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
     throw InputError(fname, "pass", "expected limits >= 0");
   if (!(s.start_delay_s >= 0.0 && s.start_delay_s <= 60.0))
     throw InputError(fname, "start_delay_s", "expected a delay from 0 to 60 s");
-  if (s.slam != "none" && s.perception != "cone_sensor")
-    throw InputError(fname, "slam", "SLAM runs on the cone sensor's detections: set perception: "
-                                    "cone_sensor");
+  {
+    const double sweep_s = 1.0 / sensors::lidar_preset(s.sensors.lidar_model)->rate_hz;
+    if (!(s.sensors.lidar_latency_s >= 0.0 && s.sensors.lidar_latency_s < sweep_s))
+      throw InputError(fname, "sensors.lidar.latency_s",
+                       "expected a latency from 0 s to less than one sweep (" +
+                           std::to_string(sweep_s) + " s)");
+    if (!(s.sensors.camera_latency_s >= 0.0 && s.sensors.camera_latency_s <= 1.0))
+      throw InputError(fname, "sensors.camera.latency_s", "expected a latency from 0 to 1 s");
+  }
+  if (s.slam != "none" && s.perception == "ground_truth")
+    throw InputError(fname, "slam", "SLAM needs observations with noise: set perception to "
+                                    "cone_sensor, lidar, stereo or fused");
   if (s.track.file && s.track.generate_seed)
     throw InputError(fname, "track", "give either file or generate, not both");
   return s;

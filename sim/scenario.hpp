@@ -40,10 +40,15 @@ struct SensorSettings {
   /// A preset of sensors::lidar_preset (vlp16, vlp32c, os1-64) and a mount preset.
   std::string lidar_model = "vlp16";
   std::string lidar_mount = "front_wing";
+  /// Time from a sweep's end until its cones reach SLAM (`perception: lidar|fused`), seconds;
+  /// less than one sweep.
+  double lidar_latency_s = 0.05;
   /// The stereo camera renders at camera_rate_hz when enabled (or dumped).
   bool camera_enabled = false;
   double camera_rate_hz = 10.0;
   bool camera_depth = false;
+  /// Time from an exposure until its cones reach SLAM (`perception: stereo`), seconds.
+  double camera_latency_s = 0.05;
   sensors::StereoCameraConfig camera;
 };
 
@@ -65,7 +70,8 @@ struct Scenario {
   std::string vehicle_source = "default";
   vehicle_models::VehicleParams vehicle;
   uint64_t seed = 1;
-  /// ground_truth or cone_sensor (later: lidar, stereo, fused).
+  /// ground_truth, cone_sensor (detection-level mock), or raw-data perception: lidar, stereo,
+  /// fused (LiDAR cones coloured by the camera).
   std::string perception = "ground_truth";
   /// none (later: graph, ekf, fastslam1, fastslam2).
   std::string slam = "none";

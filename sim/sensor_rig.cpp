@@ -5,6 +5,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
+#include <array>
 
 #include "sensors/png_writer.hpp"
 #include "sim/gnuplot.hpp"
@@ -63,6 +64,39 @@ void write_pcd(const fs::path& file, const core::PointCloud& cloud,
   write_text(file, text);
 }
 
+// draws each detected cone's box (two pixels wide) in its class colour
+void draw_boxes(const slam::frontend::StereoDetections& detections, core::RgbImage& image) {
+  auto colour = [](core::ConeClass c) -> std::array<uint8_t, 3> {
+    switch (c) {
+      case core::ConeClass::kBlue: return {40, 90, 255};
+      case core::ConeClass::kYellow: return {255, 230, 0};
+      case core::ConeClass::kOrangeSmall: return {255, 120, 0};
+      case core::ConeClass::kOrangeBig: return {255, 0, 160};
+      case core::ConeClass::kUnknown: break;
+    }
+    return {255, 255, 255};
+  };
+  auto put = [&image](int x, int y, const std::array<uint8_t, 3>& rgb) {
+    if (x < 0 || y < 0 || x >= image.width_px || y >= image.height_px) return;
+    const size_t i = 3 * (static_cast<size_t>(y) * image.width_px + x);
+    image.rgb[i] = rgb[0], image.rgb[i + 1] = rgb[1], image.rgb[i + 2] = rgb[2];
+  };
+  for (const auto& cone : detections.cones) {
+    const auto rgb = colour(cone.observation.cls);
+    const auto& b = cone.box;
+    for (int k = 0; k < 2; ++k) {
+      for (int x = b.x - k; x <= b.x + b.width + k; ++x) {
+        put(x, b.y - k, rgb);
+        put(x, b.y + b.height + k, rgb);
+      }
+      for (int y = b.y - k; y <= b.y + b.height + k; ++y) {
+        put(b.x - k, y, rgb);
+        put(b.x + b.width + k, y, rgb);
+      }
+    }
+  }
+}
+
 }  // namespace
 
 SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const VehicleSim& car,
@@ -81,8 +115,12 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
     cone_latency_us_ = s.sensors.cone_sensor.timing.latency_us();
   }
 
+  // raw-data perception switches on the sensors it needs
+  const bool raw_lidar = s.perception == "lidar" || s.perception == "fused";
+  const bool raw_camera = s.perception == "stereo" || s.perception == "fused";
+
   // the LiDAR sweeps from the first step on
-  if (s.sensors.lidar_enabled || dump_.sensors.count("lidar")) {
+  if (s.sensors.lidar_enabled || raw_lidar || dump_.sensors.count("lidar")) {
     auto config = sensors::lidar_preset(s.sensors.lidar_model);
     const auto mount = sensors::lidar_mount_preset(s.sensors.lidar_mount);
     if (!config) throw std::invalid_argument("sensors.lidar.model: unknown model " + s.sensors.lidar_model);
@@ -91,16 +129,21 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
     lidar_ = std::make_unique<sensors::Lidar>(*config, track);
     poses_ = sensors::PoseHistory(2 * config->sweep_period_us());
     poses_.push(0, car.vehicle_pose3());
+    lidar_latency_us_ = core::from_seconds(s.sensors.lidar_latency_s);
   }
 
   // the stereo camera
-  if (s.sensors.camera_enabled || dump_.sensors.count("camera")) {
+  if (s.sensors.camera_enabled || raw_camera || dump_.sensors.count("camera")) {
     if (const std::string e = s.sensors.camera.validate(); !e.empty())
       throw std::invalid_argument("sensors.camera." + e);
     camera_ = std::make_unique<sensors::StereoCamera>(s.sensors.camera, car.model(), track);
     camera_period_us_ = core::from_seconds(1.0 / s.sensors.camera_rate_hz);
     with_depth_ = s.sensors.camera_depth;
+    camera_latency_us_ = core::from_seconds(s.sensors.camera_latency_s);
   }
+  if (raw_lidar || raw_camera)
+    perception_ = std::make_unique<PerceptionRunner>(
+        s, track, lidar_ ? lidar_->config().mount : core::Pose3{});
 
   // the dump folders
   for (const std::string& name : dump_.sensors) {
@@ -132,9 +175,15 @@ void SensorRig::sync_knocked_cones(const Referee& referee) {
 }
 
 void SensorRig::step(TimeUs t, const VehicleSim& car, const Referee& referee) {
+  referee_ = &referee;
   sync_knocked_cones(referee);
   if (lidar_) {
     poses_.push(t, car.vehicle_pose3());
+    // a sweep whose cones SLAM waits for is collected when its latency has passed; a sweep
+    // only recorded goes on computing until the next one starts
+    if (pending_scan_.valid() && perception_ && perception_->uses_lidar() &&
+        t >= pending_delivery_us_)
+      collect_sweep();
     if (t > lidar_->sweep_end(sweep_start_)) start_sweep();
   }
   if (camera_ && t % camera_period_us_ == 0) render_camera(t, car, referee);
@@ -150,23 +199,50 @@ void SensorRig::start_sweep() {
   const TimeUs end = lidar_->sweep_end(start);
   for (TimeUs t = start; t <= end + 1000; t += 1000) window.push(t, poses_.at(std::min(t, poses_.newest())));
   sweep_start_ += lidar_->config().sweep_period_us();
-  pending_scan_ = std::async(std::launch::async, [this, start, window = std::move(window)] {
+  pending_delivery_us_ = end + lidar_latency_us_;
+  // the cone detector runs on the same thread, with the motion the autonomy estimates now
+  const slam::frontend::LidarConeDetector* detector =
+      perception_ ? perception_->lidar_detector() : nullptr;
+  const slam::frontend::SweepMotion motion =
+      perception_ ? perception_->motion() : slam::frontend::SweepMotion{};
+  pending_scan_ = std::async(std::launch::async, [this, start, detector, motion,
+                                                  window = std::move(window)] {
     using clock = std::chrono::steady_clock;
     const auto t0 = clock::now();
-    sensors::LidarScan scan = lidar_->sweep(start, window, lidar_rng_);
-    pending_ms_ = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
-    return scan;
+    SweepResult r{lidar_->sweep(start, window, lidar_rng_), std::nullopt};
+    const auto t1 = clock::now();
+    pending_ms_ = std::chrono::duration<double, std::milli>(t1 - t0).count();
+    if (detector) {
+      r.detections = detector->detect(r.scan.cloud, motion);
+      pending_detect_ms_ = std::chrono::duration<double, std::milli>(clock::now() - t1).count();
+    }
+    return r;
   });
 }
 
 void SensorRig::collect_sweep() {
-  const sensors::LidarScan scan = pending_scan_.get();
+  const SweepResult result = pending_scan_.get();
+  const sensors::LidarScan& scan = result.scan;
   stats_.lidar_ms_total += pending_ms_;
   const int index = stats_.lidar_scans++;
   stats_.lidar_points += static_cast<int64_t>(scan.cloud.points.size());
 
+  // the sweep's cones go to SLAM once the perception latency has passed
+  if (result.detections && referee_) {
+    stats_.lidar_detect_ms_total += pending_detect_ms_;
+    const Referee& referee = *referee_;
+    DeliveredDetections d = perception_->on_lidar(
+        scan, *result.detections, poses_.at(result.detections->stamp).planar(),
+        [&referee](int id) { return referee.is_knocked(id); });
+    cone_queue_.push_back({pending_delivery_us_, std::move(d)});
+  }
+  if (dump_.sensors.count("lidar") && index % dump_.every == 0)
+    dump_sweep(index, scan, result.detections);
+}
+
+void SensorRig::dump_sweep(int index, const sensors::LidarScan& scan,
+                           const std::optional<slam::frontend::LidarDetections>& detections) {
   // the dump: PCD, sidecar and a top-down picture
-  if (!dump_.sensors.count("lidar") || index % dump_.every != 0) return;
   const fs::path dir = run_dir_ / "images/lidar";
   write_pcd(dir / frame_name(index, "pcd"), scan.cloud, scan.labels);
   const nlohmann::json sidecar = {
@@ -178,7 +254,26 @@ void SensorRig::collect_sweep() {
       {"sensor_in_track_at_start", pose3_json(scan.labels.sensor_pose_start)},
       {"sensor_in_track_at_end", pose3_json(scan.labels.sensor_pose_end)},
       {"true_sensor_pose_at_start", pose2_json(scan.labels.sensor_pose_start.planar())}};
-  write_text(dir / frame_name(index, "json"), sidecar.dump(2) + "\n");
+  nlohmann::json with_detections = sidecar;
+  // the detector's cones, in the sensor frame at the sweep's end
+  PlotData found{"detections", {}};
+  if (detections) {
+    nlohmann::json cones = nlohmann::json::array();
+    for (const auto& c : detections->cones) {
+      cones.push_back({{"x_sensor", c.centre_sensor.x()},
+                       {"y_sensor", c.centre_sensor.y()},
+                       {"x_vehicle", c.observation.position.x()},
+                       {"y_vehicle", c.observation.position.y()},
+                       {"class", std::string(core::to_string(c.observation.cls))},
+                       {"points", c.points},
+                       {"height_m", c.height_m}});
+      found.rows.push_back({c.centre_sensor.x(), c.centre_sensor.y(),
+                            static_cast<double>(static_cast<int>(c.observation.cls))});
+    }
+    with_detections["detections"] = cones;
+    with_detections["detections_stamp_us"] = detections->stamp;
+  }
+  write_text(dir / frame_name(index, "json"), with_detections.dump(2) + "\n");
   if (dump_.lidar_png) {
     PlotData cones{"cones", {}}, ground{"ground", {}};
     for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
@@ -193,10 +288,17 @@ void SensorRig::collect_sweep() {
         "set palette defined (0 '#101060', 60 '#3060ff', 130 '#ffd000', 255 '#ffffff')\n"
         "set cbrange [0:255]\nset xlabel 'x [m]'\nset ylabel 'y [m]'\n"
         "plot $ground using 1:2 with dots lc rgb '#b0b0b0' title 'ground', "
-        "$cones using 1:2:3 with points pt 7 ps 0.4 palette title 'cone returns'\n";
+        "$cones using 1:2:3 with points pt 7 ps 0.4 palette title 'cone returns'" +
+        std::string(found.rows.empty()
+                        ? ""
+                        : ", $detections using 1:2 with points pt 6 ps 2.2 lw 2 lc rgb "
+                          "'#e00000' title 'detected cones'") +
+        "\n";
     if (cones.rows.empty()) cones.rows.push_back({0.0, 0.0, 0.0});
     if (ground.rows.empty()) ground.rows.push_back({0.0, 0.0, 0.0});
-    render_png(script, {ground, cones}, dir / frame_name(index, "png"), 900, 900);
+    std::vector<PlotData> data{ground, cones};
+    if (!found.rows.empty()) data.push_back(found);
+    render_png(script, data, dir / frame_name(index, "png"), 900, 900);
   }
 }
 
@@ -209,10 +311,26 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
   stats_.camera_ms_total += std::chrono::duration<double, std::milli>(clock::now() - start).count();
   const int index = stats_.camera_frames++;
 
+  // the stereo cone detector on the pair; its cones reach SLAM after the latency
+  std::optional<slam::frontend::StereoDetections> detections;
+  if (perception_ && perception_->uses_camera()) {
+    const auto t0 = clock::now();
+    detections = perception_->stereo_detector()->detect(frame_);
+    stats_.stereo_detect_ms_total +=
+        std::chrono::duration<double, std::milli>(clock::now() - t0).count();
+    detections->stamp = t;
+    auto d = perception_->on_stereo(frame_, *detections, car.truth().pose,
+                                    [&referee](int id) { return referee.is_knocked(id); });
+    if (d) cone_queue_.push_back({t + camera_latency_us_, std::move(*d)});
+  }
+
   // the dump: left and right PNG and a sidecar with the calibration and the true poses
   if (!dump_.sensors.count("camera") || index % dump_.every != 0) return;
   const fs::path dir = run_dir_ / "images/camera";
-  for (const auto& [side, image] : {std::pair{"left", &frame_.left}, {"right", &frame_.right}}) {
+  // the detections drawn on the left image, boxes in their class colour
+  core::RgbImage left = frame_.left;
+  if (detections) draw_boxes(*detections, left);
+  for (const auto& [side, image] : {std::pair{"left", &left}, {"right", &frame_.right}}) {
     const std::string error = sensors::write_png((dir / side / frame_name(index, "png")).string(), *image);
     if (!error.empty()) throw std::runtime_error(error);
   }
@@ -229,7 +347,19 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
       {"right_in_track", pose3_json(frame_labels_.right_in_track)},
       {"true_vehicle_pose", pose2_json(car.truth().pose)},
       {"camera_frame", "x right, y down, z forward (OpenCV)"}};
-  write_text(dir / frame_name(index, "json"), sidecar.dump(2) + "\n");
+  nlohmann::json with_detections = sidecar;
+  if (detections) {
+    nlohmann::json cones = nlohmann::json::array();
+    for (const auto& c : detections->cones)
+      cones.push_back({{"box_xywh", {c.box.x, c.box.y, c.box.width, c.box.height}},
+                       {"class", std::string(core::to_string(c.observation.cls))},
+                       {"x_vehicle", c.observation.position.x()},
+                       {"y_vehicle", c.observation.position.y()},
+                       {"disparity_px", c.disparity_px},
+                       {"depth_m", c.depth_m}});
+    with_detections["detections"] = cones;
+  }
+  write_text(dir / frame_name(index, "json"), with_detections.dump(2) + "\n");
 }
 
 void SensorRig::sense_cones(TimeUs t, const VehicleSim& car, const Referee& referee) {

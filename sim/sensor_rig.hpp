@@ -17,6 +17,7 @@
 #include "sensors/lidar.hpp"
 #include "sensors/pose_history.hpp"
 #include "sensors/stereo_camera.hpp"
+#include "sim/perception_runner.hpp"
 #include "sim/referee.hpp"
 #include "sim/scenario.hpp"
 #include "sim/vehicle_sim.hpp"
@@ -32,14 +33,6 @@ struct DumpOptions {
   bool lidar_png = true;
 };
 
-/// A cone detection frame delivered to the autonomy, with its labels.
-struct DeliveredDetections {
-  core::ConeObservations observations;
-  core::ObservationLabels labels;
-  /// True vehicle pose at the capture time (for the oracle map of `slam: none`).
-  core::Pose2 capture_pose;
-};
-
 /// Counters for metrics.json.
 struct SensorRigStats {
   int lidar_scans = 0;
@@ -48,6 +41,9 @@ struct SensorRigStats {
   int cone_frames = 0;
   double lidar_ms_total = 0.0;
   double camera_ms_total = 0.0;
+  /// Time spent in the cone detectors, milliseconds.
+  double lidar_detect_ms_total = 0.0;
+  double stereo_detect_ms_total = 0.0;
 };
 
 class SensorRig {
@@ -60,6 +56,15 @@ class SensorRig {
 
   /// Runs what is due at sim time t (after the physics step that reached t).
   void step(core::TimeUs t, const VehicleSim& car, const Referee& referee);
+
+  /// The vehicle's motion by the autonomy's estimate (raw-data perception de-skews and tracks
+  /// with it; ignored otherwise).
+  void set_motion(const slam::frontend::SweepMotion& motion) {
+    if (perception_) perception_->set_motion(motion);
+  }
+
+  /// The raw-data perception (`perception: lidar | stereo | fused`), null otherwise.
+  const PerceptionRunner* perception() const { return perception_.get(); }
 
   /// The cone detection frames whose latency has passed by time t, oldest first.
   std::optional<DeliveredDetections> take_detections(core::TimeUs t);
@@ -76,6 +81,8 @@ class SensorRig {
  private:
   void start_sweep();
   void collect_sweep();
+  void dump_sweep(int index, const sensors::LidarScan& scan,
+                  const std::optional<slam::frontend::LidarDetections>& detections);
   void render_camera(core::TimeUs t, const VehicleSim& car, const Referee& referee);
   void sense_cones(core::TimeUs t, const VehicleSim& car, const Referee& referee);
   void sync_knocked_cones(const Referee& referee);
@@ -83,6 +90,9 @@ class SensorRig {
   const tracks::Track& track_;
   DumpOptions dump_;
   std::filesystem::path run_dir_;
+
+  const Referee* referee_ = nullptr;
+  std::unique_ptr<PerceptionRunner> perception_;
 
   std::unique_ptr<sensors::ConeSensor> cone_sensor_;
   core::TimeUs cone_period_us_ = 0;
@@ -95,11 +105,20 @@ class SensorRig {
   core::TimeUs sweep_start_ = 0;
   // the sweep computing on another thread while the physics goes on (one at a time, in order,
   // so the noise sequence and the results are the same as sequential sweeps)
-  std::future<sensors::LidarScan> pending_scan_;
+  struct SweepResult {
+    sensors::LidarScan scan;
+    std::optional<slam::frontend::LidarDetections> detections;
+  };
+  std::future<SweepResult> pending_scan_;
+  // when the sweep in flight reaches SLAM (its end plus the perception latency)
+  core::TimeUs pending_delivery_us_ = 0;
+  core::TimeUs lidar_latency_us_ = 0;
   double pending_ms_ = 0.0;
+  double pending_detect_ms_ = 0.0;
 
   std::unique_ptr<sensors::StereoCamera> camera_;
   core::TimeUs camera_period_us_ = 0;
+  core::TimeUs camera_latency_us_ = 0;
   bool with_depth_ = false;
   core::StereoFrame frame_;
   core::StereoLabels frame_labels_;

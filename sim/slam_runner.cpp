@@ -1,11 +1,15 @@
 #include "sim/slam_runner.hpp"
 
+#include "sim/perception_runner.hpp"
+
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <stdexcept>
 
+#include "sim/evaluation.hpp"
 #include "sim/gnuplot.hpp"
 
 namespace conesim::sim {
@@ -36,13 +40,31 @@ double rms(const std::vector<double>& squares) {
   return std::sqrt(sum / squares.size());
 }
 
+// the classes scored one by one, in the order of the per-class figures
+constexpr std::array<core::ConeClass, 4> kScoredClasses = {
+    core::ConeClass::kBlue, core::ConeClass::kYellow, core::ConeClass::kOrangeSmall,
+    core::ConeClass::kOrangeBig};
+
+// position of a class in kScoredClasses, -1 for unknown
+int class_slot(core::ConeClass c) {
+  for (size_t k = 0; k < kScoredClasses.size(); ++k)
+    if (kScoredClasses[k] == c) return static_cast<int>(k);
+  return -1;
+}
+
+// a JSON number, or null where nothing was measured
+nlohmann::json number_or_null(double v) {
+  return std::isnan(v) ? nlohmann::json() : nlohmann::json(v);
+}
+
 slam::GraphSlamConfig graph_config(const Scenario& s) {
   slam::GraphSlamConfig c;
-  const auto& cs = s.sensors.cone_sensor;
-  c.sensor_x_m = cs.mount_x_m;
-  c.min_range_m = cs.min_range_m;
-  c.max_range_m = cs.max_range_m;
-  c.fov_deg = cs.fov_deg;
+  // where the perception sees cones: a landmark there that goes unseen counts against it
+  const PerceptionView view = perception_view(s);
+  c.sensor_x_m = view.sensor_x_m;
+  c.min_range_m = view.min_range_m;
+  c.max_range_m = view.max_range_m;
+  c.fov_deg = view.fov_deg;
   // the MuJoCo car's rear axle slides sideways in turns (slip angles up to about 1 degree):
   // the no-lateral-motion constraint must allow that
   c.icr_sigma_m = 0.3;
@@ -82,6 +104,10 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
   last_estimate_ = backend_->estimate();
   last_frame_pose_ = start;
   cone_observed_.assign(static_cast<size_t>(track.next_id()), 0);
+  cone_index_.assign(static_cast<size_t>(track.next_id()), -1);
+  for (size_t k = 0; k < track.cones.size(); ++k)
+    cone_index_[track.cones[k].id] = static_cast<int>(k);
+  next_map_snapshot_m_ = kMapSnapshotEveryM;
 }
 
 void SlamRunner::step(TimeUs t, const VehicleSim& car) {
@@ -124,8 +150,9 @@ void SlamRunner::step(TimeUs t, const VehicleSim& car) {
   }
   // sensors with different latencies arrive out of stamp order: keep the queue in stamp order
   if (delivered)
-    std::stable_sort(delivered_.begin(), delivered_.end(),
-                     [](const VehicleSample& a, const VehicleSample& b) { return a.stamp < b.stamp; });
+    std::stable_sort(
+        delivered_.begin(), delivered_.end(),
+        [](const VehicleSample& a, const VehicleSample& b) { return a.stamp < b.stamp; });
 }
 
 void SlamRunner::feed_until(slam::Odometry& odometry, TimeUs stamp,
@@ -159,10 +186,10 @@ void SlamRunner::process(const DeliveredDetections& frame) {
   const core::Pose2& est = last_estimate_.pose;
   position_error2_.push_back((est.position() - truth.position()).squaredNorm());
   yaw_error2_.push_back(std::pow(core::normalize_angle(est.yaw - truth.yaw), 2));
-  const double travelled = true_path_.empty()
-                               ? 0.0
-                               : true_odometer_.back() +
-                                     (truth.position() - true_path_.back().position()).norm();
+  const double travelled =
+      true_path_.empty()
+          ? 0.0
+          : true_odometer_.back() + (truth.position() - true_path_.back().position()).norm();
   true_path_.push_back(truth);
   estimated_path_.push_back(est);
   true_odometer_.push_back(travelled);
@@ -184,8 +211,7 @@ void SlamRunner::process(const DeliveredDetections& frame) {
         ++da_correct_;
       } else {
         ++da_wrong_;
-        wrong_association_places_.push_back(
-            truth.transform(frame.observations.cones[i].position));
+        wrong_association_places_.push_back(truth.transform(frame.observations.cones[i].position));
       }
     }
     ++votes[true_id];
@@ -201,6 +227,41 @@ void SlamRunner::process(const DeliveredDetections& frame) {
     }
     if (!real) ++false_loop_closures_;
   }
+
+  // the map error every few metres driven
+  if (travelled >= next_map_snapshot_m_) {
+    snapshot_map_error(travelled);
+    while (next_map_snapshot_m_ <= travelled) next_map_snapshot_m_ += kMapSnapshotEveryM;
+  }
+}
+
+void SlamRunner::snapshot_map_error(double distance_m) {
+  // the map now against the true cones observed so far, no alignment
+  const core::Estimate e = backend_->estimate();
+  std::vector<core::Vec2> estimated, truth;
+  std::vector<int> truth_slot;
+  for (const core::MapCone& c : e.map) estimated.push_back(c.position);
+  for (const tracks::Cone& c : track_.cones) {
+    if (!cone_observed_[c.id]) continue;
+    truth.push_back(c.position);
+    truth_slot.push_back(class_slot(c.cls));
+  }
+  const std::vector<int> match = match_points(estimated, truth, kMatchCutoffM);
+
+  // rmse overall (slot 0) and by the true cone's class (slots 1..4)
+  std::array<double, 5> sum2{}, n{};
+  for (size_t i = 0; i < match.size(); ++i) {
+    if (match[i] < 0) continue;
+    const double err2 = (estimated[i] - truth[match[i]]).squaredNorm();
+    sum2[0] += err2, n[0] += 1;
+    if (const int k = truth_slot[match[i]]; k >= 0) sum2[k + 1] += err2, n[k + 1] += 1;
+  }
+  MapErrorSnapshot snapshot;
+  snapshot.distance_m = distance_m;
+  snapshot.matched = static_cast<int>(n[0]);
+  for (size_t k = 0; k < sum2.size(); ++k)
+    snapshot.rmse_m[k] = n[k] > 0 ? std::sqrt(sum2[k] / n[k]) : NAN;
+  map_error_over_distance_.push_back(snapshot);
 }
 
 core::Estimate SlamRunner::estimate_now(TimeUs t) const {
@@ -220,32 +281,25 @@ core::Estimate SlamRunner::estimate_now(TimeUs t) const {
 core::ConeObservations SlamRunner::observations_now(TimeUs t) const {
   const core::Pose2 now = estimate_now(t).pose;
   core::ConeObservations obs = last_observations_;
-  for (auto& o : obs.cones) o.position = now.inverse_transform(last_frame_pose_.transform(o.position));
+  for (auto& o : obs.cones)
+    o.position = now.inverse_transform(last_frame_pose_.transform(o.position));
   return obs;
 }
 
 std::vector<SlamRunner::MapMatch> SlamRunner::match_map() const {
   const core::Estimate e = backend_->estimate();
-  struct Pair {
-    double d;
-    size_t est;
-    size_t truth;
-  };
-  std::vector<Pair> pairs;
-  for (size_t i = 0; i < e.map.size(); ++i)
-    for (size_t j = 0; j < track_.cones.size(); ++j) {
-      const double d = (e.map[i].position - track_.cones[j].position).norm();
-      if (d < kMatchCutoffM) pairs.push_back({d, i, j});
-    }
-  std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) { return a.d < b.d; });
+  std::vector<core::Vec2> estimated, truth;
+  for (const core::MapCone& c : e.map) estimated.push_back(c.position);
+  for (const tracks::Cone& c : track_.cones) truth.push_back(c.position);
+  const std::vector<int> match = match_points(estimated, truth, kMatchCutoffM);
   std::vector<MapMatch> matches;
-  for (const core::MapCone& c : e.map) matches.push_back({c, -1, 0.0});
-  std::vector<char> true_used(track_.cones.size(), 0);
-  for (const Pair& p : pairs) {
-    if (matches[p.est].true_cone_id >= 0 || true_used[p.truth]) continue;
-    true_used[p.truth] = 1;
-    matches[p.est].true_cone_id = track_.cones[p.truth].id;
-    matches[p.est].error_m = p.d;
+  for (size_t i = 0; i < e.map.size(); ++i) {
+    MapMatch m{e.map[i], -1, 0.0};
+    if (match[i] >= 0) {
+      m.true_cone_id = track_.cones[match[i]].id;
+      m.error_m = (estimated[i] - truth[match[i]]).norm();
+    }
+    matches.push_back(m);
   }
   return matches;
 }
@@ -255,10 +309,12 @@ nlohmann::json SlamRunner::metrics() const {
   const std::vector<MapMatch> matches = match_map();
   std::vector<double> err2;
   std::vector<char> true_used(static_cast<size_t>(track_.next_id()), 0);
+  int class_wrong = 0;
   for (const MapMatch& m : matches) {
     if (m.true_cone_id < 0) continue;
     err2.push_back(m.error_m * m.error_m);
     true_used[m.true_cone_id] = 1;
+    if (m.estimate.cls != true_cone(m.true_cone_id).cls) ++class_wrong;
   }
   int observed = 0, missed = 0;
   for (const tracks::Cone& c : track_.cones) {
@@ -268,6 +324,67 @@ nlohmann::json SlamRunner::metrics() const {
   }
   const core::Estimate e = backend_->estimate();
   const int matched = static_cast<int>(err2.size());
+
+  // per class: matched, missed and error by the true cone's class, spurious by the estimate's
+  struct ClassTally {
+    int matched = 0, missed = 0, spurious = 0;
+    std::vector<double> err2;
+  };
+  std::array<ClassTally, kScoredClasses.size()> tally;
+  for (const MapMatch& m : matches) {
+    if (m.true_cone_id < 0) {
+      if (const int k = class_slot(m.estimate.cls); k >= 0) ++tally[k].spurious;
+    } else if (const int k = class_slot(true_cone(m.true_cone_id).cls); k >= 0) {
+      ++tally[k].matched;
+      tally[k].err2.push_back(m.error_m * m.error_m);
+    }
+  }
+  for (const tracks::Cone& c : track_.cones)
+    if (cone_observed_[c.id] && !true_used[c.id])
+      if (const int k = class_slot(c.cls); k >= 0) ++tally[k].missed;
+  nlohmann::json by_class = nlohmann::json::object();
+  for (size_t k = 0; k < kScoredClasses.size(); ++k)
+    by_class[std::string(core::to_string(kScoredClasses[k]))] = {
+        {"matched", tally[k].matched},
+        {"missed", tally[k].missed},
+        {"spurious", tally[k].spurious},
+        {"rmse_m", number_or_null(tally[k].err2.empty() ? NAN : rms(tally[k].err2))}};
+
+  // the map aligned: the rigid transform that best lays the matched estimates on their true
+  // cones, then matched again
+  std::vector<core::Vec2> from, to;
+  for (const MapMatch& m : matches) {
+    if (m.true_cone_id < 0) continue;
+    from.push_back(m.estimate.position);
+    to.push_back(true_cone(m.true_cone_id).position);
+  }
+  const core::Pose2 map_alignment = align_se2(from, to);
+  std::vector<core::Vec2> aligned, truth;
+  for (const core::MapCone& c : e.map) aligned.push_back(map_alignment.transform(c.position));
+  for (const tracks::Cone& c : track_.cones) truth.push_back(c.position);
+  const std::vector<int> aligned_match = match_points(aligned, truth, kMatchCutoffM);
+  std::vector<double> aligned_err2;
+  for (size_t i = 0; i < aligned.size(); ++i)
+    if (aligned_match[i] >= 0)
+      aligned_err2.push_back((aligned[i] - truth[aligned_match[i]]).squaredNorm());
+
+  // the trajectory aligned: the estimated path laid on the true one
+  std::vector<core::Vec2> est_positions, true_positions;
+  for (size_t i = 0; i < true_path_.size(); ++i) {
+    est_positions.push_back(estimated_path_[i].position());
+    true_positions.push_back(true_path_[i].position());
+  }
+  const core::Pose2 path_alignment = align_se2(est_positions, true_positions);
+  std::vector<double> ate_aligned2, yaw_aligned2;
+  for (size_t i = 0; i < true_path_.size(); ++i) {
+    const core::Pose2 est = path_alignment.compose(estimated_path_[i]);
+    ate_aligned2.push_back((est.position() - true_path_[i].position()).squaredNorm());
+    yaw_aligned2.push_back(std::pow(core::normalize_angle(est.yaw - true_path_[i].yaw), 2));
+  }
+  auto pose_json = [](const core::Pose2& p) {
+    return nlohmann::json{{"x_m", p.x}, {"y_m", p.y}, {"yaw_rad", p.yaw}};
+  };
+
   const int total_da = da_correct_ + da_wrong_;
   return {
       {"map_rmse_m", rms(err2)},
@@ -275,8 +392,16 @@ nlohmann::json SlamRunner::metrics() const {
       {"map_missed", missed},
       {"map_spurious", static_cast<int>(e.map.size()) - matched},
       {"map_cones_observed", observed},
+      {"map_class_wrong", class_wrong},
+      {"map_rmse_aligned_m", rms(aligned_err2)},
+      {"map_matched_aligned", aligned_err2.size()},
+      {"map_alignment", pose_json(map_alignment)},
+      {"by_class", by_class},
       {"ate_rmse_m", rms(position_error2_)},
       {"yaw_rmse_rad", rms(yaw_error2_)},
+      {"ate_rmse_aligned_m", rms(ate_aligned2)},
+      {"yaw_rmse_aligned_rad", rms(yaw_aligned2)},
+      {"trajectory_alignment", pose_json(path_alignment)},
       {"da_correct", da_correct_},
       {"da_wrong", da_wrong_},
       {"da_correct_fraction", total_da ? static_cast<double>(da_correct_) / total_da : 1.0},
@@ -298,9 +423,9 @@ void SlamRunner::write_report(const std::filesystem::path& dir,
     csv << "id,class,x_m,y_m,var_x_m2,cov_xy_m2,var_y_m2,true_cone_id,error_m\n";
     for (const MapMatch& m : matches) {
       const auto& c = m.estimate;
-      csv << c.id << "," << core::to_string(c.cls) << "," << c.position.x() << ","
-          << c.position.y() << "," << c.covariance(0, 0) << "," << c.covariance(0, 1) << ","
-          << c.covariance(1, 1) << "," << m.true_cone_id << "," << m.error_m << "\n";
+      csv << c.id << "," << core::to_string(c.cls) << "," << c.position.x() << "," << c.position.y()
+          << "," << c.covariance(0, 0) << "," << c.covariance(0, 1) << "," << c.covariance(1, 1)
+          << "," << m.true_cone_id << "," << m.error_m << "\n";
     }
   }
 
@@ -313,32 +438,71 @@ void SlamRunner::write_report(const std::filesystem::path& dir,
   for (const auto& p : wrong_association_places_) wrong.rows.push_back({p.x(), p.y()});
   for (PlotData* d : {&truth, &mapped, &spurious, &wrong})
     if (d->rows.empty()) d->rows.push_back({NAN, NAN});
-  const std::string header = "set size ratio -1\nset grid\nset key outside right top\n"
-                             "set xlabel 'x [m]'\nset ylabel 'y [m]'\n";
-  render_png(header + "set title 'map over ground truth (no alignment)'\n"
-                      "plot $truth using 1:2 with points pt 6 ps 1.2 lc rgb '#808080' title 'true cones', "
-                      "$mapped using 1:2 with points pt 7 ps 0.6 lc rgb '#1f4fd8' title 'mapped', "
-                      "$spurious using 1:2 with points pt 2 ps 1.5 lc rgb '#d62728' title 'spurious', "
-                      "$wrong using 1:2 with points pt 4 ps 1.5 lc rgb '#ff7f0e' title 'wrong association'\n",
-             {truth, mapped, spurious, wrong}, dir / "slam_map.png");
+  const std::string header =
+      "set size ratio -1\nset grid\nset key outside right top\n"
+      "set xlabel 'x [m]'\nset ylabel 'y [m]'\n";
+  render_png(
+      header +
+          "set title 'map over ground truth (no alignment)'\n"
+          "plot $truth using 1:2 with points pt 6 ps 1.2 lc rgb '#808080' title 'true cones', "
+          "$mapped using 1:2 with points pt 7 ps 0.6 lc rgb '#1f4fd8' title 'mapped', "
+          "$spurious using 1:2 with points pt 2 ps 1.5 lc rgb '#d62728' title 'spurious', "
+          "$wrong using 1:2 with points pt 4 ps 1.5 lc rgb '#ff7f0e' title 'wrong association (" +
+          std::to_string(wrong_association_places_.size()) + ")'\n",
+      {truth, mapped, spurious, wrong}, dir / "slam_map.png");
+
+  // the map error per class over distance driven: a table and its figure
+  {
+    std::ofstream csv(dir / "map_error.csv");
+    csv << "distance_m,matched,rmse_m";
+    for (core::ConeClass c : kScoredClasses) csv << ",rmse_" << core::to_string(c) << "_m";
+    csv << "\n";
+    for (const MapErrorSnapshot& row : map_error_over_distance_) {
+      csv << row.distance_m << "," << row.matched;
+      for (double r : row.rmse_m) {
+        csv << ",";
+        if (!std::isnan(r)) csv << r;
+      }
+      csv << "\n";
+    }
+  }
+  PlotData map_error{"map_error", {}};
+  for (const MapErrorSnapshot& row : map_error_over_distance_) {
+    map_error.rows.push_back({row.distance_m});
+    map_error.rows.back().insert(map_error.rows.back().end(), row.rmse_m.begin(), row.rmse_m.end());
+  }
+  if (map_error.rows.empty()) map_error.rows.push_back({NAN, NAN, NAN, NAN, NAN, NAN});
+  render_png(
+      "set datafile missing 'nan'\nset grid\nset key outside right top\n"
+      "set xlabel 'distance driven [m]'\nset ylabel 'map RMSE [m]'\nset yrange [0:*]\n" +
+          ranges_if_nothing_to_plot({map_error}) +
+          "set title 'map error per class over distance (observed cones, no alignment)'\n"
+          "plot $map_error using 1:2 with lines lw 2 dt 2 lc rgb '#000000' title 'all', "
+          "$map_error using 1:3 with lines lw 1.5 lc rgb '#1f4fd8' title 'blue', "
+          "$map_error using 1:4 with lines lw 1.5 lc rgb '#e6b800' title 'yellow', "
+          "$map_error using 1:5 with lines lw 1.5 lc rgb '#ff7f0e' title 'orange small', "
+          "$map_error using 1:6 with lines lw 1.5 lc rgb '#d62728' title 'orange big'\n",
+      {map_error}, dir / "slam_map_error.png", 1000, 500);
 
   // the trajectory and its error along the run
   PlotData paths{"paths", {}}, error{"error", {}};
   for (size_t i = 0; i < true_path_.size(); ++i) {
-    paths.rows.push_back({true_path_[i].x, true_path_[i].y, estimated_path_[i].x,
-                          estimated_path_[i].y});
-    error.rows.push_back({true_odometer_[i],
-                          (estimated_path_[i].position() - true_path_[i].position()).norm()});
+    paths.rows.push_back(
+        {true_path_[i].x, true_path_[i].y, estimated_path_[i].x, estimated_path_[i].y});
+    error.rows.push_back(
+        {true_odometer_[i], (estimated_path_[i].position() - true_path_[i].position()).norm()});
   }
   if (paths.rows.empty()) paths.rows.push_back({NAN, NAN, NAN, NAN});
   if (error.rows.empty()) error.rows.push_back({NAN, NAN});
-  render_png(header + "set title 'trajectory: truth and estimate'\n"
-                      "plot $paths using 1:2 with lines lw 2 lc rgb '#808080' title 'true', "
-                      "$paths using 3:4 with lines lw 1 lc rgb '#d62728' title 'estimated'\n",
+  render_png(header + ranges_if_nothing_to_plot({paths}) +
+                 "set title 'trajectory: truth and estimate'\n"
+                 "plot $paths using 1:2 with lines lw 2 lc rgb '#808080' title 'true', "
+                 "$paths using 3:4 with lines lw 1 lc rgb '#d62728' title 'estimated'\n",
              {paths}, dir / "slam_trajectory.png");
-  render_png("set grid\nset xlabel 'distance driven [m]'\nset ylabel 'position error [m]'\n"
-             "set title 'position error of the estimate over distance (no alignment)'\n"
-             "plot $error using 1:2 with lines lw 1.5 lc rgb '#d62728' notitle\n",
+  render_png("set grid\nset xlabel 'distance driven [m]'\nset ylabel 'position error [m]'\n" +
+                 ranges_if_nothing_to_plot({error}) +
+                 "set title 'position error of the estimate over distance (no alignment)'\n"
+                 "plot $error using 1:2 with lines lw 1.5 lc rgb '#d62728' notitle\n",
              {error}, dir / "slam_error.png", 1000, 500);
 
   // the page: the run, the backend's figures, the figures
@@ -348,18 +512,28 @@ void SlamRunner::write_report(const std::filesystem::path& dir,
        << "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
           "td,th{border:1px solid #ccc;padding:4px 8px;text-align:left}</style></head><body>\n"
        << "<h1>" << run_metrics.value("event", std::string()) << " on "
-       << run_metrics.value("track", std::string()) << " (seed "
-       << run_metrics.value("seed", 0) << ")</h1>\n<table>\n";
-  for (const char* key : {"completed", "dnf_reason", "laps", "final_time_s", "penalties",
-                          "real_time_factor"})
+       << run_metrics.value("track", std::string()) << " (seed " << run_metrics.value("seed", 0)
+       << ")</h1>\n<table>\n";
+  for (const char* key :
+       {"completed", "dnf_reason", "laps", "final_time_s", "penalties", "real_time_factor"})
     if (run_metrics.contains(key))
       html << "<tr><th>" << key << "</th><td>" << run_metrics[key].dump() << "</td></tr>\n";
   html << "</table>\n<h2>SLAM: " << name() << "</h2>\n<table>\n";
   const nlohmann::json figures = metrics();
   for (const auto& [key, value] : figures.items())
-    html << "<tr><th>" << key << "</th><td>" << value.dump() << "</td></tr>\n";
+    if (key != "by_class")
+      html << "<tr><th>" << key << "</th><td>" << value.dump() << "</td></tr>\n";
+  html
+      << "</table>\n<h3>Map per class</h3>\n<table>\n"
+         "<tr><th>class</th><th>matched</th><th>missed</th><th>spurious</th><th>rmse_m</th></tr>\n";
+  for (const auto& [cls, f] : figures["by_class"].items())
+    html << "<tr><th>" << cls << "</th><td>" << f["matched"].dump() << "</td><td>"
+         << f["missed"].dump() << "</td><td>" << f["spurious"].dump() << "</td><td>"
+         << f["rmse_m"].dump() << "</td></tr>\n";
   html << "</table>\n"
        << "<h2>Map over ground truth</h2><img src=\"slam_map.png\" width=\"900\">\n"
+       << "<h2>Map error per class over distance</h2>"
+          "<img src=\"slam_map_error.png\" width=\"900\">\n"
        << "<h2>Trajectory</h2><img src=\"slam_trajectory.png\" width=\"900\">\n"
        << "<img src=\"slam_error.png\" width=\"900\">\n"
        << "<h2>Run</h2><img src=\"run.png\" width=\"900\">\n</body></html>\n";

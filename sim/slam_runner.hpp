@@ -5,6 +5,7 @@
 // against ground truth here, in the harness: map, trajectory, associations, loop closures,
 // update time.
 
+#include <array>
 #include <deque>
 #include <filesystem>
 #include <map>
@@ -50,11 +51,29 @@ class SlamRunner {
     double error_m = 0.0;
   };
 
-  /// The final map matched one to one to the true cones within the 1 m cut-off (greedy over
-  /// all pairs by distance), no alignment.
+  /// The final map matched one to one to the true cones within the 1 m cut-off, no alignment:
+  /// the most pairs, then the least total distance (Hungarian, sim/evaluation.hpp).
   std::vector<MapMatch> match_map() const;
 
-  /// Writes map.csv, the map and trajectory figures and report.html into the run directory.
+  /// The map error at one moment of the run: the backend's map then, matched to the true cones
+  /// observed until then. RMSE overall and per class of the true cone (blue, yellow,
+  /// orange_small, orange_big); NaN where no cone of that class was matched.
+  struct MapErrorSnapshot {
+    double distance_m = 0.0;
+    int matched = 0;
+    std::array<double, 5> rmse_m{};
+  };
+
+  /// How often the map error is taken, in distance driven.
+  static constexpr double kMapSnapshotEveryM = 10.0;
+
+  /// The map error every kMapSnapshotEveryM of distance driven, in order.
+  const std::vector<MapErrorSnapshot>& map_error_over_distance() const {
+    return map_error_over_distance_;
+  }
+
+  /// Writes map.csv, map_error.csv, the map, map-error and trajectory figures and report.html
+  /// into the run directory.
   void write_report(const std::filesystem::path& dir, const nlohmann::json& run_metrics) const;
 
   std::string name() const { return backend_->name(); }
@@ -63,6 +82,8 @@ class SlamRunner {
   struct VehicleSample;
   void feed_until(slam::Odometry& odometry, core::TimeUs stamp,
                   std::deque<VehicleSample>* queue) const;
+  void snapshot_map_error(double distance_m);
+  const tracks::Cone& true_cone(int id) const { return track_.cones[cone_index_[id]]; }
 
   const tracks::Track& track_;
   std::unique_ptr<slam::Backend> backend_;
@@ -102,6 +123,10 @@ class SlamRunner {
   // true cone ids seen by each landmark (by landmark id), for its majority identity
   std::map<int, std::map<int, int>> landmark_votes_;
   std::vector<char> cone_observed_;
+  // index into track_.cones by cone id
+  std::vector<int> cone_index_;
+  double next_map_snapshot_m_ = 0.0;
+  std::vector<MapErrorSnapshot> map_error_over_distance_;
 };
 
 }  // namespace conesim::sim

@@ -76,7 +76,13 @@ TEST_F(ScenarioFile, BadInputNamesFileLineAndKey) {
             std::string::npos);
   EXPECT_NE(error_of("event: autocross\nvehicle: {mass_kg: -3}\n").find("mass_kg"),
             std::string::npos);
-  EXPECT_NE(error_of("event: autocross\nperception: lidar\n").find("perception"),
+  EXPECT_NE(error_of("event: autocross\nperception: radar\n").find("s.yaml:2: perception: "
+                                                                   "expected ground_truth"),
+            std::string::npos);
+  EXPECT_NE(error_of("event: autocross\nslam: graph\n").find("slam: SLAM needs"),
+            std::string::npos);
+  EXPECT_NE(error_of("event: autocross\nsensors: {lidar: {latency_s: 0.2}}\n")
+                .find("sensors.lidar.latency_s"),
             std::string::npos);
 }
 

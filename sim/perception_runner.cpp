@@ -1,0 +1,221 @@
+#include "sim/perception_runner.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <stdexcept>
+
+namespace conesim::sim {
+
+namespace {
+
+// the scorers look this far from the sensor, in 5 m bands
+constexpr double kScoreBandM = 5.0;
+constexpr double kScoreRangeM = 30.0;
+// a cone that returned fewer points than this is beyond what a cone detector can find
+constexpr int kMinReturns = 3;
+
+// where the vehicle frame at `later` lies in the vehicle frame at `earlier`, moving at a
+// constant speed and yaw rate (the autonomy's own estimate) for dt seconds
+core::Pose2 motion_over(const slam::frontend::SweepMotion& m, double dt) {
+  const double dyaw = m.yaw_rate_rps * dt;
+  const double ds = m.speed_mps * dt;
+  // the chord of the arc, at half the heading change
+  return {ds * std::cos(0.5 * dyaw), ds * std::sin(0.5 * dyaw), dyaw};
+}
+
+// the true cone a LiDAR cluster stands for: the label most of its points carry (-1 when most
+// points are ground or no cone has a majority)
+int cluster_label(const slam::frontend::LidarCone& cone, const core::PointCloudLabels& labels) {
+  std::map<int, int> votes;
+  for (int i : cone.point_indices) ++votes[labels.cone_id[static_cast<size_t>(i)]];
+  int best = core::ObservationLabels::kFalsePositive;
+  int best_votes = 0;
+  for (const auto& [id, n] : votes)
+    if (n > best_votes) best = id, best_votes = n;
+  if (2 * best_votes <= static_cast<int>(cone.point_indices.size())) return -1;
+  return best >= 0 ? best : core::ObservationLabels::kFalsePositive;
+}
+
+}  // namespace
+
+PerceptionView perception_view(const Scenario& s) {
+  PerceptionView v;
+  if (s.perception == "lidar" || s.perception == "fused") {
+    // the farthest ground distance at which two rings still hit a small cone between 5 cm and
+    // its top, from the mount's height (a level mount)
+    const sensors::LidarConfig lidar = *sensors::lidar_preset(s.sensors.lidar_model);
+    const core::Pose3 mount = *sensors::lidar_mount_preset(s.sensors.lidar_mount);
+    const double height_m = mount.position.z();
+    const double cone_m = core::cone_size(core::ConeClass::kBlue).height_m;
+    double visible = 0.0;
+    for (double d = 1.0; d <= 30.0; d += 0.1) {
+      int rings = 0;
+      for (double e : lidar.elevations_deg) {
+        const double z = height_m + d * std::tan(e * std::numbers::pi / 180.0);
+        if (z >= 0.05 && z <= cone_m) ++rings;
+      }
+      if (rings >= 2) visible = d;
+    }
+    v.sensor_x_m = mount.position.x();
+    v.min_range_m = 1.0;
+    v.max_range_m = std::min(visible, 15.0);
+    v.fov_deg = 360.0;
+    return v;
+  }
+  if (s.perception == "stereo") {
+    v.sensor_x_m = s.sensors.camera.mount_x_m;
+    v.min_range_m = 2.0;
+    v.max_range_m = 12.0;
+    v.fov_deg = s.sensors.camera.horizontal_fov_deg;
+    return v;
+  }
+  const auto& cs = s.sensors.cone_sensor;
+  v.sensor_x_m = cs.mount_x_m;
+  v.min_range_m = cs.min_range_m;
+  v.max_range_m = cs.max_range_m;
+  v.fov_deg = cs.fov_deg;
+  return v;
+}
+
+PerceptionRunner::PerceptionRunner(const Scenario& s, const tracks::Track& track,
+                                   const core::Pose3& lidar_mount)
+    : track_(track), mode_(s.perception), tracker_(slam::frontend::TrackerConfig{}) {
+  const bool lidar = mode_ == "lidar" || mode_ == "fused";
+  const bool camera = mode_ == "stereo" || mode_ == "fused";
+  if (!lidar && !camera)
+    throw std::invalid_argument("perception: raw-data perception is lidar, stereo or fused, not " +
+                                mode_);
+  lidar_xy_ = lidar_mount.position.head<2>();
+  if (lidar) {
+    // the detector knows the beam pattern of the LiDAR model (not the scene)
+    const sensors::LidarConfig lidar = *sensors::lidar_preset(s.sensors.lidar_model);
+    slam::frontend::LidarDetectorConfig config;
+    config.sweep_period_s = 1.0 / lidar.rate_hz;
+    config.ring_elevations_deg = lidar.elevations_deg;
+    std::sort(config.ring_elevations_deg.begin(), config.ring_elevations_deg.end());
+    config.azimuth_step_deg = 360.0 / lidar.columns;
+    config.range_noise_sigma_m = lidar.range_noise_sigma_m;
+    lidar_detector_ = std::make_unique<slam::frontend::LidarConeDetector>(config, lidar_mount);
+    lidar_score_ = std::make_unique<PerceptionScorer>(lidar_xy_, kScoreBandM, kScoreRangeM);
+    lidar_returned_score_ =
+        std::make_unique<PerceptionScorer>(lidar_xy_, kScoreBandM, kScoreRangeM);
+  }
+  if (camera) {
+    stereo_detector_ =
+        std::make_unique<slam::frontend::StereoConeDetector>(slam::frontend::StereoDetectorConfig{});
+  }
+  if (lidar) delivered_score_ = std::make_unique<PerceptionScorer>(lidar_xy_, kScoreBandM, kScoreRangeM);
+}
+
+std::vector<TrueConeInView> PerceptionRunner::truth_in_view(
+    const core::Pose2& true_pose, const core::Vec2& sensor, double half_fov_rad,
+    const std::function<bool(int)>& is_knocked) const {
+  std::vector<TrueConeInView> out;
+  for (const tracks::Cone& c : track_.cones) {
+    if (is_knocked && is_knocked(c.id)) continue;
+    const core::Vec2 local = true_pose.inverse_transform(c.position);
+    const core::Vec2 from_sensor = local - sensor;
+    if (from_sensor.norm() > kScoreRangeM) continue;
+    if (std::abs(std::atan2(from_sensor.y(), from_sensor.x())) > half_fov_rad) continue;
+    out.push_back({c.id, c.cls, local});
+  }
+  return out;
+}
+
+core::ConeObservations PerceptionRunner::track(const core::ConeObservations& frame) {
+  const double dt =
+      tracker_stamp_ ? core::to_seconds(frame.stamp - *tracker_stamp_) : 0.0;
+  tracker_stamp_ = frame.stamp;
+  return tracker_.update(frame, motion_over(motion_, dt));
+}
+
+DeliveredDetections PerceptionRunner::on_lidar(const sensors::LidarScan& scan,
+                                               const slam::frontend::LidarDetections& detections,
+                                               const core::Pose2& true_pose,
+                                               const std::function<bool(int)>& is_knocked) {
+  // the LiDAR alone, scored against the true cones all round
+  const auto truth = truth_in_view(true_pose, lidar_xy_, std::numbers::pi, is_knocked);
+  const core::ConeObservations raw = detections.observations();
+  lidar_score_->add_frame(raw, truth);
+  // and against the cones that returned enough points to be found at all
+  std::map<int, int> returns;
+  for (int id : scan.labels.cone_id)
+    if (id >= 0) ++returns[id];
+  std::vector<TrueConeInView> returned;
+  for (const TrueConeInView& c : truth) {
+    const auto it = returns.find(c.id);
+    if (it != returns.end() && it->second >= kMinReturns) returned.push_back(c);
+  }
+  lidar_returned_score_->add_frame(raw, returned);
+
+  // fused: colours from the latest stereo pair, moved into this sweep's frame by the odometry
+  core::ConeObservations frame = raw;
+  std::vector<int> labels;
+  if (mode_ == "fused") {
+    core::Pose2 camera_in_lidar;
+    if (latest_stereo_)
+      camera_in_lidar =
+          motion_over(motion_, core::to_seconds(latest_stereo_->stamp - detections.stamp));
+    frame = slam::frontend::fuse(fusion_, detections, latest_stereo_, intrinsics_,
+                                 left_in_vehicle_, camera_in_lidar);
+    frame.stamp = detections.stamp;
+  } else {
+    for (const auto& cone : detections.cones) labels.push_back(cluster_label(cone, scan.labels));
+  }
+
+  // tracked ids and colour votes, then the score of what SLAM receives
+  frame = track(frame);
+  const std::vector<int> matched = delivered_score_->add_frame(frame, truth);
+  DeliveredDetections out;
+  out.observations = std::move(frame);
+  // the point labels are exact for LiDAR clusters; fused frames are labelled by the match
+  out.labels.cone_id = labels.size() == out.observations.cones.size() ? labels : matched;
+  out.capture_pose = true_pose;
+  return out;
+}
+
+std::optional<DeliveredDetections> PerceptionRunner::on_stereo(
+    const core::StereoFrame& frame, const slam::frontend::StereoDetections& detections,
+    const core::Pose2& true_pose, const std::function<bool(int)>& is_knocked) {
+  // the camera alone, scored against the true cones in its field of view
+  intrinsics_ = frame.intrinsics;
+  left_in_vehicle_ = frame.left_in_vehicle;
+  const core::Vec2 camera_xy = frame.left_in_vehicle.position.head<2>();
+  if (!stereo_score_)
+    stereo_score_ = std::make_unique<PerceptionScorer>(camera_xy, kScoreBandM, kScoreRangeM);
+  if (mode_ == "stereo" && !delivered_score_)
+    delivered_score_ = std::make_unique<PerceptionScorer>(camera_xy, kScoreBandM, kScoreRangeM);
+  const double half_fov = std::atan2(frame.intrinsics.cx, frame.intrinsics.fx);
+  const auto truth = truth_in_view(true_pose, camera_xy, half_fov, is_knocked);
+  stereo_score_->add_frame(detections.observations(), truth);
+  if (mode_ == "fused") {
+    latest_stereo_ = detections;
+    return std::nullopt;
+  }
+
+  // stereo alone drives SLAM
+  core::ConeObservations tracked = track(detections.observations());
+  tracked.stamp = detections.stamp;
+  DeliveredDetections out;
+  out.labels.cone_id = delivered_score_->add_frame(tracked, truth);
+  out.observations = std::move(tracked);
+  out.capture_pose = true_pose;
+  return out;
+}
+
+nlohmann::json PerceptionRunner::metrics() const {
+  nlohmann::json m = delivered_score_ ? delivered_score_->metrics() : nlohmann::json::object();
+  m["mode"] = mode_;
+  if (lidar_score_) m["lidar"] = lidar_score_->metrics();
+  if (lidar_returned_score_) m["lidar_returned_cones"] = lidar_returned_score_->metrics();
+  if (stereo_score_) m["stereo"] = stereo_score_->metrics();
+  return m;
+}
+
+void PerceptionRunner::write_plot(const std::filesystem::path& png) const {
+  if (delivered_score_) delivered_score_->write_bands_plot(png);
+}
+
+}  // namespace conesim::sim

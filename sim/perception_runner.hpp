@@ -1,0 +1,120 @@
+#pragma once
+// Raw-data perception in the loop (`perception: lidar | stereo | fused`): the cone detectors of
+// slam/frontend run on each LiDAR sweep and stereo pair, fusion colours the LiDAR cones from
+// the camera, the tracker gives stable ids, and each frame is scored against the labels (the
+// point labels of the sweep, the true cones in view) before it goes to SLAM and the driver.
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+
+#include "core/measurements.hpp"
+#include "sensors/lidar.hpp"
+#include "sim/evaluation.hpp"
+#include "sim/scenario.hpp"
+#include "slam/frontend/cone_tracker.hpp"
+#include "slam/frontend/fusion.hpp"
+#include "slam/frontend/lidar_cone_detector.hpp"
+#include "slam/frontend/stereo_cone_detector.hpp"
+#include "tracks/track.hpp"
+
+namespace conesim::sim {
+
+/// A cone detection frame delivered to the autonomy, with its labels.
+struct DeliveredDetections {
+  core::ConeObservations observations;
+  core::ObservationLabels labels;
+  /// True vehicle pose at the capture time (for the oracle map of `slam: none`).
+  core::Pose2 capture_pose;
+};
+
+/// Where a scenario's perception sees cones reliably: the sensor's place on the car, its field
+/// of view and the ranges within which a standing cone is detected.
+struct PerceptionView {
+  double sensor_x_m = 0.0;
+  double min_range_m = 0.0;
+  double max_range_m = 0.0;
+  double fov_deg = 360.0;
+};
+
+/// The view of the scenario's perception: the cone sensor's configuration; for a LiDAR, the
+/// range up to which at least two rings hit a small cone (a VLP-16 on the front wing sees small
+/// cones only within about 9 m: its rings are 2 degrees apart); for the camera, its horizontal
+/// field of view out to the stereo detector's range.
+PerceptionView perception_view(const Scenario& scenario);
+
+/// Turns LiDAR sweeps and stereo pairs into cone frames for SLAM, and scores them.
+class PerceptionRunner {
+ public:
+  /// Sets up the detectors the scenario's perception needs. lidar_mount: the LiDAR's pose in
+  /// the vehicle frame (for `lidar` and `fused`).
+  PerceptionRunner(const Scenario& scenario, const tracks::Track& track,
+                   const core::Pose3& lidar_mount);
+
+  bool uses_lidar() const { return lidar_detector_ != nullptr; }
+  bool uses_camera() const { return stereo_detector_ != nullptr; }
+  /// The LiDAR detector (const: it may run on the sweep's worker thread); null when unused.
+  const slam::frontend::LidarConeDetector* lidar_detector() const { return lidar_detector_.get(); }
+  /// The stereo detector; null when unused.
+  const slam::frontend::StereoConeDetector* stereo_detector() const {
+    return stereo_detector_.get();
+  }
+
+  /// The vehicle's motion by the autonomy's own estimate (for de-skew and tracking).
+  void set_motion(const slam::frontend::SweepMotion& motion) { motion_ = motion; }
+  const slam::frontend::SweepMotion& motion() const { return motion_; }
+
+  /// One sweep's detections: scored, fused with the latest stereo result (`fused`), tracked.
+  /// true_pose: the vehicle pose at the detections' stamp. Returns the frame for SLAM.
+  DeliveredDetections on_lidar(const sensors::LidarScan& scan,
+                               const slam::frontend::LidarDetections& detections,
+                               const core::Pose2& true_pose,
+                               const std::function<bool(int)>& is_knocked);
+
+  /// One stereo pair's detections: scored; for `stereo` tracked and returned for SLAM, for
+  /// `fused` kept for the next sweep.
+  std::optional<DeliveredDetections> on_stereo(const core::StereoFrame& frame,
+                                               const slam::frontend::StereoDetections& detections,
+                                               const core::Pose2& true_pose,
+                                               const std::function<bool(int)>& is_knocked);
+
+  /// metrics.json's `perception` (the scorer of the frames SLAM receives), with per-sensor
+  /// figures under `lidar` and `stereo` when both run.
+  nlohmann::json metrics() const;
+
+  /// The range-band figure (recall, precision, colour, RMSE per 5 m band) as a PNG.
+  void write_plot(const std::filesystem::path& png) const;
+
+ private:
+  // the true cones standing within the scorer's range and the sensor's field of view
+  std::vector<TrueConeInView> truth_in_view(const core::Pose2& true_pose, const core::Vec2& sensor,
+                                            double half_fov_rad,
+                                            const std::function<bool(int)>& is_knocked) const;
+  // the tracker's step, with the motion since its previous frame
+  core::ConeObservations track(const core::ConeObservations& frame);
+
+  const tracks::Track& track_;
+  std::string mode_;
+  std::unique_ptr<slam::frontend::LidarConeDetector> lidar_detector_;
+  std::unique_ptr<slam::frontend::StereoConeDetector> stereo_detector_;
+  slam::frontend::FusionConfig fusion_;
+  slam::frontend::ConeTracker tracker_;
+  std::optional<core::TimeUs> tracker_stamp_;
+  slam::frontend::SweepMotion motion_;
+  core::Vec2 lidar_xy_ = core::Vec2::Zero();
+  // the latest stereo result, for fusion
+  std::optional<slam::frontend::StereoDetections> latest_stereo_;
+  core::CameraIntrinsics intrinsics_;
+  core::Pose3 left_in_vehicle_;
+  // scorers: what SLAM receives, and each sensor's own detections
+  std::unique_ptr<PerceptionScorer> delivered_score_;
+  std::unique_ptr<PerceptionScorer> lidar_score_;
+  // the LiDAR against only the cones its beams returned from (the detector's own share)
+  std::unique_ptr<PerceptionScorer> lidar_returned_score_;
+  std::unique_ptr<PerceptionScorer> stereo_score_;
+};
+
+}  // namespace conesim::sim
