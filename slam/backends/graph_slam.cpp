@@ -50,12 +50,18 @@ std::string GraphSlamConfig::validate() const {
     s << "graph_slam.icr_sigma_m: expected >= 0";
   else if (!(observation_huber > 0.0))
     s << "graph_slam.observation_huber: expected > 0";
+  else if (localisation_window_poses < 1)
+    s << "graph_slam.localisation_window_poses: expected >= 1";
+  else if (!(gyro_bias_sigma_rps >= 0.0))
+    s << "graph_slam.gyro_bias_sigma_rps: expected >= 0";
   if (!s.str().empty()) return s.str();
   return loop_closure.validate();
 }
 
 GraphSlam::GraphSlam(const GraphSlamConfig& config)
     : config_(config), huber_(std::make_unique<ceres::HuberLoss>(config.observation_huber)) {
+  if (config_.gyro_bias_sigma_rps > 0.0)
+    gyro_bias_prior_.reset(GyroBiasPrior::Create(config_.gyro_bias_sigma_rps));
   reset({}, 0);
 }
 
@@ -75,6 +81,8 @@ void GraphSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
   phase_ = core::SlamPhase::kMapping;
   map_complete_ = false;
   loop_closures_ = 0;
+  gyro_bias_rps_ = {0.0};
+  first_localised_pose_ = 1;
   travel_m_ = 0.0;
   speed_mps_ = 0.0;
   yaw_rate_rps_ = 0.0;
@@ -94,6 +102,7 @@ void GraphSlam::set_prior_map(const std::vector<core::MapCone>& map) {
   }
   phase_ = core::SlamPhase::kLocalisation;
   map_complete_ = true;
+  first_localised_pose_ = static_cast<int>(poses_.size());
 }
 
 void GraphSlam::process(const SlamInput& input) {
@@ -111,16 +120,20 @@ void GraphSlam::process(const SlamInput& input) {
 }
 
 void GraphSlam::predict(const OdometryDelta& odometry) {
-  // a new pose node where the odometry puts it, tied to the previous one
+  // a new pose node where the odometry puts it (its heading change corrected by the gyro
+  // bias), tied to the previous one
   const core::Pose2 previous_pose = poses_.back().pose();
-  const core::Pose2 pose = previous_pose.compose(odometry.delta);
+  const double dt_s = core::to_seconds(odometry.to - odometry.from);
+  core::Pose2 delta = odometry.delta;
+  delta.yaw -= gyro_bias_rps_[0] * dt_s;
+  const core::Pose2 pose = previous_pose.compose(delta);
   PoseNode node;
   node.stamp = odometry.to;
   node.x = {pose.x, pose.y, pose.yaw};
   travel_m_ += odometry.distance_m;
   node.travel_m = travel_m_;
   node.odometry.reset(
-      OdometryResidual::Create(odometry.delta, sqrt_information<3>(odometry.covariance)));
+      OdometryResidual::Create(odometry.delta, sqrt_information<3>(odometry.covariance), dt_s));
   if (config_.icr_sigma_m > 0.0) node.icr.reset(IcrResidual::Create(config_.icr_sigma_m));
   poses_.push_back(std::move(node));
 
@@ -175,6 +188,15 @@ void GraphSlam::add_observation_edge(int pose, int landmark,
   landmarks_[landmark].edges.push_back(index);
 }
 
+void GraphSlam::add_motion_edges(ceres::Problem& problem, int pose) {
+  // odometry (through the gyro bias) and ICR edges from the previous pose
+  PoseNode& node = poses_[pose];
+  PoseNode& previous = poses_[pose - 1];
+  problem.AddResidualBlock(node.odometry.get(), nullptr, previous.x.data(), node.x.data(),
+                           gyro_bias_rps_.data());
+  if (node.icr) problem.AddResidualBlock(node.icr.get(), nullptr, previous.x.data(), node.x.data());
+}
+
 void GraphSlam::associate_batch(const core::ConeObservations& observations) {
   // against the landmarks in reach; new landmarks only while mapping
   associations_ = associate(config_.association, poses_.back().pose(), &pose_covariance_,
@@ -185,7 +207,6 @@ void GraphSlam::update(const core::ConeObservations& observations) {
   const int pose_index = static_cast<int>(poses_.size()) - 1;
   const core::Pose2 pose = poses_.back().pose();
   const bool mapping = phase_ == core::SlamPhase::kMapping;
-  localisation_terms_.clear();
   Eigen::Matrix3d pose_information = pose_covariance_.inverse();
 
   for (size_t i = 0; i < observations.cones.size(); ++i) {
@@ -238,7 +259,7 @@ void GraphSlam::update(const core::ConeObservations& observations) {
     if (mapping) {
       add_observation_edge(pose_index, lm.id, obs);
     } else {
-      localisation_terms_.push_back(
+      poses_.back().localisation.push_back(
           {std::unique_ptr<ceres::CostFunction>(
                ObservationResidual::Create(obs.position, sqrt_information<2>(obs.covariance))),
            lm.id});
@@ -254,14 +275,11 @@ void GraphSlam::optimise_window() {
   ceres::Problem problem(problem_options());
   std::vector<int> window_landmarks;
   for (int i = first; i < n; ++i) {
-    PoseNode& node = poses_[i];
-    PoseNode& previous = poses_[i - 1];
-    problem.AddResidualBlock(node.odometry.get(), nullptr, previous.x.data(), node.x.data());
-    if (node.icr)
-      problem.AddResidualBlock(node.icr.get(), nullptr, previous.x.data(), node.x.data());
-    for (int e : node.edges) window_landmarks.push_back(edges_[e].landmark);
+    add_motion_edges(problem, i);
+    for (int e : poses_[i].edges) window_landmarks.push_back(edges_[e].landmark);
   }
   problem.SetParameterBlockConstant(poses_[first - 1].x.data());
+  problem.SetParameterBlockConstant(gyro_bias_rps_.data());
   std::sort(window_landmarks.begin(), window_landmarks.end());
   window_landmarks.erase(std::unique(window_landmarks.begin(), window_landmarks.end()),
                          window_landmarks.end());
@@ -284,23 +302,25 @@ void GraphSlam::optimise_window() {
 }
 
 void GraphSlam::localise() {
-  // the newest pose against the fixed map and the previous pose
+  // the last poses against the fixed map, tied by the odometry; the one before them fixed
   const int n = static_cast<int>(poses_.size());
-  PoseNode& node = poses_[n - 1];
-  PoseNode& previous = poses_[n - 2];
+  const int first = std::max({1, first_localised_pose_, n - config_.localisation_window_poses});
   ceres::Problem problem(problem_options());
-  problem.AddResidualBlock(node.odometry.get(), nullptr, previous.x.data(), node.x.data());
-  if (node.icr) problem.AddResidualBlock(node.icr.get(), nullptr, previous.x.data(), node.x.data());
-  problem.SetParameterBlockConstant(previous.x.data());
-
-  // this batch's observations of the fixed map
-  for (const LocalisationTerm& term : localisation_terms_) {
-    double* landmark = landmarks_[term.landmark].x.data();
-    problem.AddResidualBlock(term.cost.get(), huber_.get(), node.x.data(), landmark);
-    problem.SetParameterBlockConstant(landmark);
+  for (int i = first; i < n; ++i) {
+    add_motion_edges(problem, i);
+    for (const LocalisationTerm& term : poses_[i].localisation) {
+      double* landmark = landmarks_[term.landmark].x.data();
+      problem.AddResidualBlock(term.cost.get(), huber_.get(), poses_[i].x.data(), landmark);
+      problem.SetParameterBlockConstant(landmark);
+    }
   }
+  problem.SetParameterBlockConstant(poses_[first - 1].x.data());
+  problem.SetParameterBlockConstant(gyro_bias_rps_.data());
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options(config_.localisation_iterations, false), &problem, &summary);
+
+  // the pose leaving the window next time keeps its estimate; its terms are not needed again
+  if (first - 1 >= first_localised_pose_) poses_[first - 1].localisation.clear();
 }
 
 bool GraphSlam::in_field_of_view(const core::Pose2& pose, const core::Vec2& landmark) const {
@@ -375,14 +395,14 @@ LoopClosureStats GraphSlam::update_landmark_statistics() {
 void GraphSlam::close_loop() {
   // the whole graph: every pose but the gauge, every landmark, every edge
   ceres::Problem problem(problem_options());
-  for (size_t i = 1; i < poses_.size(); ++i) {
-    PoseNode& node = poses_[i];
-    PoseNode& previous = poses_[i - 1];
-    problem.AddResidualBlock(node.odometry.get(), nullptr, previous.x.data(), node.x.data());
-    if (node.icr)
-      problem.AddResidualBlock(node.icr.get(), nullptr, previous.x.data(), node.x.data());
-  }
+  for (size_t i = 1; i < poses_.size(); ++i) add_motion_edges(problem, static_cast<int>(i));
   problem.SetParameterBlockConstant(poses_.front().x.data());
+  // the lap's heading must close: that calibrates the gyro bias the standstill left
+  if (gyro_bias_prior_) {
+    problem.AddResidualBlock(gyro_bias_prior_.get(), nullptr, gyro_bias_rps_.data());
+  } else {
+    problem.SetParameterBlockConstant(gyro_bias_rps_.data());
+  }
   for (ObservationEdge& edge : edges_) {
     Landmark& lm = landmarks_[edge.landmark];
     if (lm.removed) continue;
@@ -402,6 +422,7 @@ void GraphSlam::close_loop() {
   }
   phase_ = core::SlamPhase::kLocalisation;
   map_complete_ = true;
+  first_localised_pose_ = static_cast<int>(poses_.size());
 }
 
 core::Estimate GraphSlam::estimate() const {

@@ -31,11 +31,11 @@ void evaluate(const ceres::CostFunction& cost, const std::vector<double*>& block
 }
 
 // the autodiff cost function and its numeric twin agree on residuals and Jacobians
-template <typename Functor, int R, int A, int B>
+template <typename Functor, int R, int... Blocks>
 void expect_autodiff_matches_numeric(Functor* autodiff_functor, Functor* numeric_functor,
                                      std::vector<double*> blocks) {
-  ceres::AutoDiffCostFunction<Functor, R, A, B> autodiff(autodiff_functor);
-  ceres::NumericDiffCostFunction<Functor, ceres::CENTRAL, R, A, B> numeric(numeric_functor);
+  ceres::AutoDiffCostFunction<Functor, R, Blocks...> autodiff(autodiff_functor);
+  ceres::NumericDiffCostFunction<Functor, ceres::CENTRAL, R, Blocks...> numeric(numeric_functor);
   Eigen::Matrix<double, R, 1> r_auto, r_num;
   std::vector<Eigen::MatrixXd> j_auto, j_num;
   evaluate<R>(autodiff, blocks, &r_auto, &j_auto);
@@ -66,11 +66,11 @@ TEST(OdometryResidual, ZeroAtTheMeasuredDeltaAndAngleWrapsAcrossPi) {
   const core::Pose2 a{1.0, 2.0, 3.0};
   const core::Pose2 delta{0.9, 0.05, 0.3};
   const core::Pose2 b = a.compose(delta);
-  double pa[3] = {a.x, a.y, a.yaw}, pb[3] = {b.x, b.y, b.yaw};
+  double pa[3] = {a.x, a.y, a.yaw}, pb[3] = {b.x, b.y, b.yaw}, bias[1] = {0.0};
   std::unique_ptr<ceres::CostFunction> cost(
-      OdometryResidual::Create(delta, Eigen::Matrix3d::Identity()));
+      OdometryResidual::Create(delta, Eigen::Matrix3d::Identity(), 0.1));
   Eigen::Vector3d r;
-  double* blocks[2] = {pa, pb};
+  double* blocks[3] = {pa, pb, bias};
   ASSERT_TRUE(cost->Evaluate(blocks, r.data(), nullptr));
   EXPECT_LT(r.norm(), 1e-12);
   // one whole turn added to b's heading changes nothing
@@ -83,10 +83,36 @@ TEST(OdometryResidual, AutodiffMatchesNumeric) {
   Eigen::Matrix3d cov;
   cov << 0.01, 0.002, 0.0, 0.002, 0.004, 0.0005, 0.0, 0.0005, 0.0004;
   const core::Pose2 delta{0.9, 0.05, 0.3};
-  double a[3] = {1.0, -2.0, 2.9}, b[3] = {1.5, -1.0, -3.0};
-  expect_autodiff_matches_numeric<OdometryResidual, 3, 3, 3>(
-      new OdometryResidual(delta, sqrt_information<3>(cov)),
-      new OdometryResidual(delta, sqrt_information<3>(cov)), {a, b});
+  double a[3] = {1.0, -2.0, 2.9}, b[3] = {1.5, -1.0, -3.0}, bias[1] = {0.003};
+  expect_autodiff_matches_numeric<OdometryResidual, 3, 3, 3, 1>(
+      new OdometryResidual(delta, sqrt_information<3>(cov), 0.1),
+      new OdometryResidual(delta, sqrt_information<3>(cov), 0.1), {a, b, bias});
+}
+
+TEST(OdometryResidual, GyroBiasTakesItsTurnOutOfTheMeasuredHeading) {
+  // a gyro reading 0.002 rad/s too high over 0.1 s: the true pose b turned 0.0002 rad less
+  const core::Pose2 a{1.0, 2.0, 0.5};
+  const core::Pose2 measured{0.9, 0.0, 0.0302};
+  const core::Pose2 b = a.compose({0.9, 0.0, 0.0300});
+  double pa[3] = {a.x, a.y, a.yaw}, pb[3] = {b.x, b.y, b.yaw}, bias[1] = {0.0};
+  std::unique_ptr<ceres::CostFunction> cost(
+      OdometryResidual::Create(measured, Eigen::Matrix3d::Identity(), 0.1));
+  Eigen::Vector3d r;
+  double* blocks[3] = {pa, pb, bias};
+  ASSERT_TRUE(cost->Evaluate(blocks, r.data(), nullptr));
+  EXPECT_NEAR(r.z(), -0.0002, 1e-12);
+  bias[0] = 0.002;
+  ASSERT_TRUE(cost->Evaluate(blocks, r.data(), nullptr));
+  EXPECT_LT(r.norm(), 1e-12);
+}
+
+TEST(GyroBiasPrior, WhitensTheBiasBySigma) {
+  std::unique_ptr<ceres::CostFunction> cost(GyroBiasPrior::Create(5e-4));
+  double bias[1] = {1e-3};
+  double r = 0.0;
+  double* blocks[1] = {bias};
+  ASSERT_TRUE(cost->Evaluate(blocks, &r, nullptr));
+  EXPECT_NEAR(r, 2.0, 1e-12);
 }
 
 TEST(ObservationResidual, ZeroWhenTheLandmarkIsWhereItWasSeen) {

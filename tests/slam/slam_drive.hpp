@@ -43,6 +43,8 @@ struct DriveParams {
   double extra_gyro_bias_rps = 0.002;
   uint64_t seed = 1;
   sensors::ConeSensorConfig cone_sensor;
+  /// The odometry's noise model and motion model (its geometry comes from the fields above).
+  OdometryConfig odometry;
   /// A known map given to the backend after reset (localisation only), empty for SLAM.
   std::vector<core::MapCone> prior_map;
   /// Print a line every 10 batches (error, associations, map size, update time).
@@ -137,7 +139,7 @@ inline DriveResult drive(const tracks::Track& track, Backend& backend, const Dri
   sensors::WheelEncoders wheels({}, core::derive_seed(p.seed, 2));
   sensors::SteeringSensor steering({}, core::derive_seed(p.seed, 3));
   sensors::ConeSensor cone_sensor(p.cone_sensor, core::derive_seed(p.seed, 4));
-  OdometryConfig odo_config;
+  OdometryConfig odo_config = p.odometry;
   odo_config.wheelbase_m = p.wheelbase_m;
   odo_config.wheel_radius_m = p.wheel_radius_m;
   Odometry odometry(odo_config);
