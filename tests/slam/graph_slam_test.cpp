@@ -53,13 +53,18 @@ TEST(GraphSlam, TwoLapsOfAGeneratedCircuitMapAndLocaliseWithinTargets) {
   EXPECT_TRUE(r.localising_at_end);
 }
 
+// the true layout as a known map (1 cm sigma), as skidpad gives it
+std::vector<core::MapCone> layout_as_map(const tracks::Track& track) {
+  std::vector<core::MapCone> prior;
+  for (const tracks::Cone& cone : track.cones)
+    prior.push_back({cone.id, cone.cls, cone.position, Eigen::Matrix2d::Identity() * 1e-4});
+  return prior;
+}
+
 TEST(GraphSlam, LocalisesOnAPriorMapWithoutChangingIt) {
   // the known layout (as for skidpad) given as the map: localisation from the first batch
   const tracks::Track track = tracks::generate_circuit(5);
-  std::vector<core::MapCone> prior;
-  for (const tracks::Cone& cone : track.cones) {
-    prior.push_back({cone.id, cone.cls, cone.position, Eigen::Matrix2d::Identity() * 1e-4});
-  }
+  const std::vector<core::MapCone> prior = layout_as_map(track);
   GraphSlam slam;
   testing::DriveParams params;
   params.seed = 5;
@@ -85,10 +90,7 @@ TEST(GraphSlam, LocalisationHoldsTheHeadingWithAnUncalibratedGyro) {
   // on the last pose alone, the heading followed the gyro and the error grew without bound
   // (trackdrive seed 3 left the track); the window over the last poses holds it to the map.
   const tracks::Track track = tracks::generate_circuit(5);
-  std::vector<core::MapCone> prior;
-  for (const tracks::Cone& cone : track.cones) {
-    prior.push_back({cone.id, cone.cls, cone.position, Eigen::Matrix2d::Identity() * 1e-4});
-  }
+  const std::vector<core::MapCone> prior = layout_as_map(track);
   GraphSlam slam;
   testing::DriveParams params;
   params.seed = 5;
