@@ -202,7 +202,9 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
         estimate.map = map;
       }
       driving_pose = estimate.pose;
-      rig.set_motion({estimate.speed_mps, estimate.yaw_rate_rps});
+      // perception de-skews and tracks with the odometry's motion (the truth without SLAM)
+      rig.set_motion(slam ? slam->motion_now(t)
+                          : slam::frontend::SweepMotion{estimate.speed_mps, estimate.yaw_rate_rps});
       command = driver.update({estimate, obs});
       // before the go signal the car is held at the start
       if (t < start_delay_us) command = {0.0, 0.0, true};

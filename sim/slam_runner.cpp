@@ -278,6 +278,13 @@ core::Estimate SlamRunner::estimate_now(TimeUs t) const {
   return e;
 }
 
+slam::frontend::SweepMotion SlamRunner::motion_now(TimeUs t) const {
+  slam::Odometry forward = odometry_;
+  std::deque<VehicleSample> pending = delivered_;
+  feed_until(forward, t, &pending);
+  return {forward.mean_speed_mps(), forward.yaw_rate_rps()};
+}
+
 core::ConeObservations SlamRunner::observations_now(TimeUs t) const {
   const core::Pose2 now = estimate_now(t).pose;
   core::ConeObservations obs = last_observations_;
@@ -536,7 +543,18 @@ void SlamRunner::write_report(const std::filesystem::path& dir,
           "<img src=\"slam_map_error.png\" width=\"900\">\n"
        << "<h2>Trajectory</h2><img src=\"slam_trajectory.png\" width=\"900\">\n"
        << "<img src=\"slam_error.png\" width=\"900\">\n"
-       << "<h2>Run</h2><img src=\"run.png\" width=\"900\">\n</body></html>\n";
+       << "<h2>Run</h2><img src=\"run.png\" width=\"900\">\n";
+  // raw-data perception: its headline figures and the range bands
+  if (run_metrics.contains("perception") && run_metrics["perception"].contains("bands")) {
+    const nlohmann::json& p = run_metrics["perception"];
+    html << "<h2>Perception: " << p.value("mode", std::string()) << "</h2>\n<table>\n";
+    for (const char* key : {"recall_15m", "precision_15m", "colour_accuracy_10m", "recall",
+                            "precision", "colour_accuracy", "position_rmse_m", "frames"})
+      if (p.contains(key))
+        html << "<tr><th>" << key << "</th><td>" << p[key].dump() << "</td></tr>\n";
+    html << "</table>\n<img src=\"perception_bands.png\" width=\"900\">\n";
+  }
+  html << "</body></html>\n";
 }
 
 }  // namespace conesim::sim

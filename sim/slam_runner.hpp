@@ -18,6 +18,7 @@
 #include "sim/sensor_rig.hpp"
 #include "sim/vehicle_sim.hpp"
 #include "slam/backends/graph_slam.hpp"
+#include "slam/frontend/lidar_cone_detector.hpp"
 #include "slam/odometry.hpp"
 #include "tracks/track.hpp"
 
@@ -37,6 +38,10 @@ class SlamRunner {
 
   /// The estimate at time t: the backend's, moved forward by the odometry since its last frame.
   core::Estimate estimate_now(core::TimeUs t) const;
+
+  /// The vehicle's motion at t by the odometry, for perception: the speed averaged over the
+  /// last 0.1 s (a sweep; single encoder samples are coarse) and the yaw rate.
+  slam::frontend::SweepMotion motion_now(core::TimeUs t) const;
 
   /// The latest frame's observations expressed in the vehicle frame at t (by the estimate).
   core::ConeObservations observations_now(core::TimeUs t) const;

@@ -1,5 +1,6 @@
 #include "slam/odometry.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -145,6 +146,15 @@ void Odometry::add_wheel_speeds(const core::WheelSpeeds& sample) {
   // the rear axle centre moves at the mean of the rear wheels
   has_wheels_ = true;
   speed_mps_ = 0.5 * (sample.omega_rps[2] + sample.omega_rps[3]) * config_.wheel_radius_m;
+  recent_speeds_mps_[static_cast<size_t>(speed_samples_++ % kSpeedWindow)] = speed_mps_;
+}
+
+double Odometry::mean_speed_mps() const {
+  const int n = std::min(speed_samples_, kSpeedWindow);
+  if (n == 0) return speed_mps_;
+  double sum = 0.0;
+  for (int i = 0; i < n; ++i) sum += recent_speeds_mps_[static_cast<size_t>(i)];
+  return sum / n;
 }
 
 void Odometry::add_steering(const core::SteeringSample& sample) {

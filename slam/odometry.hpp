@@ -4,6 +4,7 @@
 // into an SE(2) delta with its covariance.
 
 #include <Eigen/Core>
+#include <array>
 #include <string>
 
 #include "core/geometry.hpp"
@@ -86,6 +87,10 @@ class Odometry {
 
   /// Latest forward speed of the rear axle centre, m/s.
   double speed_mps() const { return speed_mps_; }
+  /// Mean forward speed over the last kSpeedWindow wheel samples, m/s: the encoders count whole
+  /// teeth, so one sample reads the speed only to about 3 m/s at 100 Hz; the mean over 0.1 s
+  /// (a LiDAR sweep) reads it to 0.3 m/s.
+  double mean_speed_mps() const;
   /// Latest fused yaw rate, rad/s.
   double yaw_rate_rps() const;
   /// The gyro bias learnt at standstill, rad/s.
@@ -97,6 +102,10 @@ class Odometry {
   OdometryConfig config_;
   // the held sensor values
   double speed_mps_ = 0.0;
+  // the latest wheel-sample speeds, oldest overwritten first
+  static constexpr int kSpeedWindow = 10;
+  std::array<double, kSpeedWindow> recent_speeds_mps_{};
+  int speed_samples_ = 0;
   double steer_rad_ = 0.0;
   double gyro_z_rps_ = 0.0;
   bool has_gyro_ = false;

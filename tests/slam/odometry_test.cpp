@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 
 #include "core/rng.hpp"
 
@@ -164,6 +165,36 @@ TEST(OdometryConfig, ValidateNamesTheBadKey) {
   EXPECT_EQ(c.validate(), "");
   c.wheelbase_m = -1.0;
   EXPECT_NE(c.validate().find("odometry.wheelbase_m"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace conesim::slam
+
+namespace conesim::slam {
+namespace {
+
+TEST(Odometry, MeanSpeedReadsThroughTheEncoderTeeth) {
+  // 8 m/s on 48-tooth rings at 100 Hz: each sample counts 2 or 3 teeth (6.0 or 9.0 m/s with a
+  // 0.23 m wheel), the mean over ten samples counts the teeth of 0.1 s
+  OdometryConfig config;
+  config.wheel_radius_m = 0.23;
+  Odometry odometry(config);
+  odometry.reset(0);
+  const double tooth_rad = 2.0 * std::numbers::pi / 48.0;
+  double wheel_rad = 0.0;
+  for (core::TimeUs t = 10000; t <= 1'000'000; t += 10000) {
+    const double before = std::floor(wheel_rad / tooth_rad);
+    wheel_rad += 8.0 / 0.23 * 0.01;
+    core::WheelSpeeds w;
+    w.stamp = t;
+    w.omega_rps.fill((std::floor(wheel_rad / tooth_rad) - before) * tooth_rad / 0.01);
+    odometry.add_wheel_speeds(w);
+    if (t >= 100'000) {
+      // one sample is a whole number of teeth away from the truth; ten are within one tooth
+      EXPECT_NEAR(odometry.mean_speed_mps(), 8.0, tooth_rad * 0.23 / 0.1 + 1e-9) << t;
+    }
+  }
+  EXPECT_GT(std::abs(odometry.speed_mps() - 8.0), 0.5);
 }
 
 }  // namespace
