@@ -94,35 +94,69 @@ int find_root(std::vector<int>& parent, int i) {
 // come out ordered by their first point (the firing order), points in firing order
 std::vector<std::vector<int>> euclidean_clusters(const std::vector<RaisedPoint>& points,
                                                  double distance) {
+  // a grid of cells small enough that any two points of one cell are within `distance` (side
+  // distance / sqrt 2): a cell's points belong together, and two points within `distance` lie
+  // at most two cells apart on each axis
   const int n = static_cast<int>(points.size());
-  auto cell_of = [distance](const Vector2d& p) {
-    return std::array<int64_t, 2>{static_cast<int64_t>(std::floor(p.x() / distance)),
-                                  static_cast<int64_t>(std::floor(p.y() / distance))};
+  const double side = distance / std::sqrt(2.0);
+  auto cell_of = [side](const Vector2d& p) {
+    return std::array<int64_t, 2>{static_cast<int64_t>(std::floor(p.x() / side)),
+                                  static_cast<int64_t>(std::floor(p.y() / side))};
   };
-  auto key_of = [](int64_t cx, int64_t cy) { return (cx << 32) ^ (cy & 0xffffffff); };
-  std::unordered_map<int64_t, std::vector<int>> grid;
-  grid.reserve(static_cast<size_t>(n));
+  constexpr int64_t kRow = int64_t{1} << 32;
+  auto key_of = [](int64_t cx, int64_t cy) { return cx * kRow + cy; };
+  std::vector<std::pair<int64_t, int>> sorted(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) {
     const auto c = cell_of(points[i].foot);
-    grid[key_of(c[0], c[1])].push_back(i);
+    sorted[static_cast<size_t>(i)] = {key_of(c[0], c[1]), i};
+  }
+  std::sort(sorted.begin(), sorted.end());
+
+  // the occupied cells: runs of the sorted points
+  struct Cell {
+    int64_t key, cx, cy;
+    size_t begin, end;
+  };
+  std::vector<Cell> cells;
+  for (size_t k = 0; k < sorted.size(); ++k) {
+    if (cells.empty() || cells.back().key != sorted[k].first) {
+      const auto c = cell_of(points[sorted[k].second].foot);
+      cells.push_back({sorted[k].first, c[0], c[1], k, k});
+    }
+    cells.back().end = k + 1;
   }
 
-  // link each point with the points of the 3 x 3 cells around it
+  // union-find: each cell's points joined, then each pair of nearby cells joined by their first
+  // pair of points within `distance` (once joined, a pair of cells needs no more checks)
   std::vector<int> parent(static_cast<size_t>(n));
   std::iota(parent.begin(), parent.end(), 0);
+  auto join = [&parent](int a, int b) {
+    const int ra = find_root(parent, a), rb = find_root(parent, b);
+    if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+  };
+  for (const Cell& cell : cells)
+    for (size_t k = cell.begin + 1; k < cell.end; ++k)
+      join(sorted[cell.begin].second, sorted[k].second);
   const double distance2 = distance * distance;
-  for (int i = 0; i < n; ++i) {
-    const auto c = cell_of(points[i].foot);
-    for (int64_t dx = -1; dx <= 1; ++dx)
-      for (int64_t dy = -1; dy <= 1; ++dy) {
-        const auto it = grid.find(key_of(c[0] + dx, c[1] + dy));
-        if (it == grid.end()) continue;
-        for (const int j : it->second) {
-          if (j <= i) continue;
-          if ((points[i].foot - points[j].foot).squaredNorm() > distance2) continue;
-          const int ri = find_root(parent, i), rj = find_root(parent, j);
-          if (ri != rj) parent[std::max(ri, rj)] = std::min(ri, rj);
-        }
+  for (const Cell& cell : cells) {
+    for (int64_t dx = 0; dx <= 2; ++dx)
+      for (int64_t dy = -2; dy <= 2; ++dy) {
+        if (dx == 0 && dy <= 0) continue;  // each pair of cells once
+        const int64_t key = key_of(cell.cx + dx, cell.cy + dy);
+        const auto other = std::lower_bound(
+            cells.begin(), cells.end(), key,
+            [](const Cell& c, int64_t k) { return c.key < k; });
+        if (other == cells.end() || other->key != key) continue;
+        const int a0 = sorted[cell.begin].second, b0 = sorted[other->begin].second;
+        if (find_root(parent, a0) == find_root(parent, b0)) continue;
+        bool joined = false;
+        for (size_t i = cell.begin; i < cell.end && !joined; ++i)
+          for (size_t j = other->begin; j < other->end && !joined; ++j)
+            if ((points[sorted[i].second].foot - points[sorted[j].second].foot).squaredNorm() <=
+                distance2) {
+              join(a0, b0);
+              joined = true;
+            }
       }
   }
 
@@ -492,12 +526,20 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
     vehicle[i] = Vector3d(xy.x(), xy.y(), v.z());
   }
 
-  // ground: candidates near z = 0 of the vehicle frame, then two refits on the inliers
+  // ground: candidates near z = 0 of the vehicle frame, then two refits on the inliers. Three
+  // parameters need no more than a few thousand points: every k-th candidate is kept
   std::vector<Vector3d> candidates;
   candidates.reserve(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i)
     if (range[i] >= 0.0 && std::abs(vehicle[i].z()) < c.ground_candidate_band_m)
       candidates.push_back(vehicle[i]);
+  constexpr size_t kGroundFitPoints = 4000;
+  if (candidates.size() > 2 * kGroundFitPoints) {
+    const size_t stride = candidates.size() / kGroundFitPoints;
+    size_t kept = 0;
+    for (size_t i = 0; i < candidates.size(); i += stride) candidates[kept++] = candidates[i];
+    candidates.resize(kept);
+  }
   GroundPlane ground;
   if (fit_plane(candidates, c.ground_candidate_band_m, ground)) {
     GroundPlane refit = ground;

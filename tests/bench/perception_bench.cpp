@@ -6,6 +6,8 @@
 
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
+
 #include "sensors/lidar.hpp"
 #include "sensors/lidar_config.hpp"
 #include "sensors/pose_history.hpp"
@@ -47,6 +49,28 @@ void BM_LidarConeDetector(benchmark::State& state) {
   state.counters["cones"] = static_cast<double>(cones);
 }
 BENCHMARK(BM_LidarConeDetector)->Unit(benchmark::kMillisecond);
+
+void BM_LidarConeDetectorVlp32c(benchmark::State& state) {
+  // the shipped trackdrive-lidar sensor: twice the rings, and four times the points on cones
+  const sensors::LidarConfig config = *sensors::lidar_preset("vlp32c");
+  const sensors::LidarScan scan = one_sweep(tracks::generate_circuit(7), config);
+  slam::frontend::LidarDetectorConfig detector_config;
+  detector_config.ring_elevations_deg = config.elevations_deg;
+  std::sort(detector_config.ring_elevations_deg.begin(), detector_config.ring_elevations_deg.end());
+  const slam::frontend::LidarConeDetector detector(detector_config, config.mount);
+  size_t cones = 0;
+  int raised = 0;
+  for (auto _ : state) {
+    const slam::frontend::LidarDetections d = detector.detect(scan.cloud, {10.0, 0.0});
+    cones = d.cones.size();
+    raised = d.non_ground_points;
+    benchmark::DoNotOptimize(cones);
+  }
+  state.counters["points"] = static_cast<double>(scan.cloud.points.size());
+  state.counters["raised"] = raised;
+  state.counters["cones"] = static_cast<double>(cones);
+}
+BENCHMARK(BM_LidarConeDetectorVlp32c)->Unit(benchmark::kMillisecond);
 
 void BM_ConeTracker(benchmark::State& state) {
   const sensors::LidarConfig config;
