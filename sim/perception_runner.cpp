@@ -187,9 +187,30 @@ std::optional<DeliveredDetections> PerceptionRunner::on_stereo(
     stereo_score_ = std::make_unique<PerceptionScorer>(camera_xy, kScoreBandM, kScoreRangeM);
   if (mode_ == "stereo" && !delivered_score_)
     delivered_score_ = std::make_unique<PerceptionScorer>(camera_xy, kScoreBandM, kScoreRangeM);
+  // a stereo pair measures a cone only where both images hold all of it: the true cones in
+  // view are those wholly inside the left and the right camera's field of view
   const double half_fov = std::atan2(frame.intrinsics.cx, frame.intrinsics.fx);
-  const auto truth = truth_in_view(true_pose, camera_xy, half_fov, is_knocked);
-  stereo_score_->add_frame(detections.observations(), truth);
+  const auto in_left = truth_in_view(true_pose, camera_xy, half_fov, is_knocked);
+  std::vector<TrueConeInView> truth;
+  std::vector<core::Vec2> partial;
+  for (const TrueConeInView& c : in_left) {
+    bool whole = true;
+    for (const core::Pose3* camera : {&frame.left_in_vehicle, &frame.right_in_vehicle}) {
+      const core::Vec2 v = c.position - camera->position.head<2>();
+      const double half_width = std::atan2(0.5 * core::cone_size(c.cls).base_m, v.norm());
+      whole = whole && v.x() > 0.0 && std::abs(std::atan2(v.y(), v.x())) + half_width <= half_fov;
+    }
+    if (whole) truth.push_back(c);
+    else partial.push_back(c.position);
+  }
+  // a cone cut by an image border is neither to be found nor a false detection (as KITTI's
+  // DontCare regions): detections within 1 m of one are left out of the camera's own score
+  core::ConeObservations scored = detections.observations();
+  std::erase_if(scored.cones, [&partial](const core::ConeObservation& o) {
+    return std::any_of(partial.begin(), partial.end(),
+                       [&o](const core::Vec2& p) { return (o.position - p).norm() < 1.0; });
+  });
+  stereo_score_->add_frame(scored, truth);
   if (mode_ == "fused") {
     latest_stereo_ = detections;
     return std::nullopt;
@@ -199,7 +220,8 @@ std::optional<DeliveredDetections> PerceptionRunner::on_stereo(
   core::ConeObservations tracked = track(detections.observations());
   tracked.stamp = detections.stamp;
   DeliveredDetections out;
-  out.labels.cone_id = delivered_score_->add_frame(tracked, truth);
+  // (what SLAM receives is labelled against every cone in the left image)
+  out.labels.cone_id = delivered_score_->add_frame(tracked, in_left);
   out.observations = std::move(tracked);
   out.capture_pose = true_pose;
   return out;
