@@ -165,11 +165,12 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       core::ConeObservations obs;
       std::vector<int> ids;
       core::Estimate estimate;
+      slam::frontend::SweepMotion odometry_motion;
       if (slam) {
         // SLAM: every delivered frame updates the backend; the driver sees only its estimate
         while (auto d = rig.take_detections(t)) slam->process(*d);
-        estimate = slam->estimate_now(t);
-        obs = slam->observations_now(t);
+        estimate = slam->estimate_now(t, &odometry_motion);
+        obs = slam->observations_at(estimate.pose);
       } else {
         if (noisy_perception) {
           while (auto d = rig.take_detections(t)) {
@@ -203,7 +204,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       }
       driving_pose = estimate.pose;
       // perception de-skews and tracks with the odometry's motion (the truth without SLAM)
-      rig.set_motion(slam ? slam->motion_now(t)
+      rig.set_motion(slam ? odometry_motion
                           : slam::frontend::SweepMotion{estimate.speed_mps, estimate.yaw_rate_rps});
       command = driver.update({estimate, obs});
       // before the go signal the car is held at the start

@@ -264,7 +264,8 @@ void SlamRunner::snapshot_map_error(double distance_m) {
   map_error_over_distance_.push_back(snapshot);
 }
 
-core::Estimate SlamRunner::estimate_now(TimeUs t) const {
+core::Estimate SlamRunner::estimate_now(TimeUs t,
+                                        slam::frontend::SweepMotion* motion) const {
   // carry the last estimate forward with the odometry delivered since its frame
   slam::Odometry forward = odometry_;
   std::deque<VehicleSample> pending = delivered_;
@@ -275,18 +276,11 @@ core::Estimate SlamRunner::estimate_now(TimeUs t) const {
   e.pose = last_estimate_.pose.compose(delta.delta);
   e.speed_mps = forward.speed_mps();
   e.yaw_rate_rps = forward.yaw_rate_rps();
+  if (motion) *motion = {forward.mean_speed_mps(), e.yaw_rate_rps};
   return e;
 }
 
-slam::frontend::SweepMotion SlamRunner::motion_now(TimeUs t) const {
-  slam::Odometry forward = odometry_;
-  std::deque<VehicleSample> pending = delivered_;
-  feed_until(forward, t, &pending);
-  return {forward.mean_speed_mps(), forward.yaw_rate_rps()};
-}
-
-core::ConeObservations SlamRunner::observations_now(TimeUs t) const {
-  const core::Pose2 now = estimate_now(t).pose;
+core::ConeObservations SlamRunner::observations_at(const core::Pose2& now) const {
   core::ConeObservations obs = last_observations_;
   for (auto& o : obs.cones)
     o.position = now.inverse_transform(last_frame_pose_.transform(o.position));

@@ -37,14 +37,14 @@ class SlamRunner {
   void process(const DeliveredDetections& frame);
 
   /// The estimate at time t: the backend's, moved forward by the odometry since its last frame.
-  core::Estimate estimate_now(core::TimeUs t) const;
-
-  /// The vehicle's motion at t by the odometry, for perception: the speed averaged over the
+  /// With `motion`, also the odometry's motion at t for perception: the speed averaged over the
   /// last 0.1 s (a sweep; single encoder samples are coarse) and the yaw rate.
-  slam::frontend::SweepMotion motion_now(core::TimeUs t) const;
+  core::Estimate estimate_now(core::TimeUs t,
+                              slam::frontend::SweepMotion* motion = nullptr) const;
 
-  /// The latest frame's observations expressed in the vehicle frame at t (by the estimate).
-  core::ConeObservations observations_now(core::TimeUs t) const;
+  /// The latest frame's observations expressed in the vehicle frame at `now` (an estimate
+  /// from estimate_now).
+  core::ConeObservations observations_at(const core::Pose2& now) const;
 
   /// The backend's figures for metrics.json (keys of ARCHITECTURE.md under slam.<name>).
   nlohmann::json metrics() const;

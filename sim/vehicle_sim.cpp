@@ -19,21 +19,6 @@ constexpr double kFrontBrakeShare = 0.3;
 // slip band over which traction control and ABS fade the torque out
 constexpr double kSlipFadeBand = 0.10;
 
-// loads MJCF text through MuJoCo's virtual file system
-mjModel* load_model(const std::string& xml) {
-  auto vfs = std::make_unique<mjVFS>();
-  mj_defaultVFS(vfs.get());
-  const char* name = "conesim_car.xml";
-  if (mj_makeEmptyFileVFS(vfs.get(), name, static_cast<int>(xml.size())) != 0)
-    throw std::runtime_error("MuJoCo: cannot create the in-memory model file");
-  std::memcpy(vfs->filedata[mj_findFileVFS(vfs.get(), name)], xml.data(), xml.size());
-  char error[1000] = "";
-  mjModel* model = mj_loadXML(name, vfs.get(), error, sizeof(error));
-  mj_deleteVFS(vfs.get());
-  if (!model) throw std::runtime_error(std::string("MuJoCo could not load the car: ") + error);
-  return model;
-}
-
 int require_id(const mjModel* m, int type, const std::string& name) {
   const int id = mj_name2id(m, type, name.c_str());
   if (id < 0) throw std::runtime_error("MuJoCo model has no " + name);
@@ -47,11 +32,25 @@ double slip_fade(double slip, double target) {
 
 }  // namespace
 
+mjModel* load_mjcf_model(const std::string& xml) {
+  auto vfs = std::make_unique<mjVFS>();
+  mj_defaultVFS(vfs.get());
+  const char* name = "conesim_car.xml";
+  if (mj_makeEmptyFileVFS(vfs.get(), name, static_cast<int>(xml.size())) != 0)
+    throw std::runtime_error("MuJoCo: cannot create the in-memory model file");
+  std::memcpy(vfs->filedata[mj_findFileVFS(vfs.get(), name)], xml.data(), xml.size());
+  char error[1000] = "";
+  mjModel* model = mj_loadXML(name, vfs.get(), error, sizeof(error));
+  mj_deleteVFS(vfs.get());
+  if (!model) throw std::runtime_error(std::string("MuJoCo could not load the car: ") + error);
+  return model;
+}
+
 VehicleSim::VehicleSim(const vehicle_models::VehicleParams& params, const core::Pose2& start)
     : params_(params) {
   if (const std::string error = params.validate(); !error.empty())
     throw std::invalid_argument("vehicle parameters: " + error);
-  model_ = load_model(vehicle_models::build_mjcf(params));
+  model_ = load_mjcf_model(vehicle_models::build_mjcf(params));
   data_ = mj_makeData(model_);
 
   // look up what the controller drives and reads

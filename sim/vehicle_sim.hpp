@@ -7,6 +7,7 @@
 
 #include <array>
 #include <memory>
+#include <string>
 
 #include "core/autonomy_types.hpp"
 #include "core/geometry.hpp"
@@ -36,6 +37,10 @@ struct VehicleTruth {
 };
 
 /// Owns the MuJoCo model and data of one car.
+/// Loads MJCF text through MuJoCo's virtual file system; the caller owns the model
+/// (mj_deleteModel). Throws std::runtime_error with MuJoCo's message when it cannot load.
+mjModel* load_mjcf_model(const std::string& xml);
+
 class VehicleSim {
  public:
   /// Builds the model and places the rear axle centre at `start`, at rest. Throws

@@ -7,7 +7,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <ctime>
 #include <memory>
 #include <stdexcept>
@@ -18,6 +17,7 @@
 #include "core/rng.hpp"
 #include "sensors/png_writer.hpp"
 #include "sensors/stereo_camera.hpp"
+#include "sim/vehicle_sim.hpp"
 #include "slam/frontend/fusion.hpp"
 #include "tracks/generator.hpp"
 #include "tracks/track.hpp"
@@ -42,20 +42,9 @@ constexpr double kMatchGateM = 1.5;
 // the car's MuJoCo model posed by hand: the camera reads only qpos, no physics runs
 class PosedCar {
  public:
-  PosedCar() {
-    const std::string xml = vehicle_models::build_mjcf(params_);
-    auto vfs = std::make_unique<mjVFS>();
-    mj_defaultVFS(vfs.get());
-    const char* name = "car.xml";
-    if (mj_makeEmptyFileVFS(vfs.get(), name, static_cast<int>(xml.size())) != 0)
-      throw std::runtime_error("cannot create the in-memory model file");
-    std::memcpy(vfs->filedata[mj_findFileVFS(vfs.get(), name)], xml.data(), xml.size());
-    char error[1000] = "";
-    model_ = mj_loadXML(name, vfs.get(), error, sizeof(error));
-    mj_deleteVFS(vfs.get());
-    if (!model_) throw std::runtime_error(std::string("cannot load the car: ") + error);
-    data_ = mj_makeData(model_);
-  }
+  PosedCar()
+      : model_(sim::load_mjcf_model(vehicle_models::build_mjcf(params_))),
+        data_(mj_makeData(model_)) {}
   ~PosedCar() {
     mj_deleteData(data_);
     mj_deleteModel(model_);
