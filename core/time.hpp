@@ -2,6 +2,7 @@
 // The one sim clock: integer microseconds, so that schedules never drift.
 
 #include <cstdint>
+#include <ctime>
 
 namespace conesim::core {
 
@@ -16,6 +17,14 @@ inline constexpr double to_seconds(TimeUs t) { return static_cast<double>(t) * 1
 /// Whole microseconds from seconds, rounded to nearest.
 inline constexpr TimeUs from_seconds(double s) {
   return static_cast<TimeUs>(s * 1e6 + (s >= 0 ? 0.5 : -0.5));
+}
+
+/// CPU time the calling thread has used, ms: for timings that other processes on a shared
+/// machine must not inflate (wall time counts their time slices too).
+inline double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
 }
 
 }  // namespace conesim::core

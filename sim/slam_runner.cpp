@@ -9,6 +9,7 @@
 #include <fstream>
 #include <stdexcept>
 
+#include "core/time.hpp"
 #include "sim/evaluation.hpp"
 #include "sim/gnuplot.hpp"
 
@@ -31,6 +32,10 @@ double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
   return v[static_cast<size_t>(q * (v.size() - 1) + 0.5)];
+}
+
+nlohmann::json pose_json(const core::Pose2& p) {
+  return nlohmann::json{{"x_m", p.x}, {"y_m", p.y}, {"yaw_rad", p.yaw}};
 }
 
 double rms(const std::vector<double>& squares) {
@@ -175,7 +180,9 @@ void SlamRunner::process(const DeliveredDetections& frame) {
 
   // the update, timed
   const auto start = clock::now();
+  const double cpu_start = core::thread_cpu_ms();
   backend_->process(input);
+  update_cpu_ms_.push_back(core::thread_cpu_ms() - cpu_start);
   update_ms_.push_back(std::chrono::duration<double, std::milli>(clock::now() - start).count());
   last_estimate_ = backend_->estimate();
   last_observations_ = frame.observations;
@@ -226,6 +233,11 @@ void SlamRunner::process(const DeliveredDetections& frame) {
       if ((true_path_[j].position() - truth.position()).norm() < kLoopTruthRadiusM) real = true;
     }
     if (!real) ++false_loop_closures_;
+    loop_closure_events_.push_back({{"t_s", core::to_seconds(stamp)},
+                                    {"travel_m", travelled},
+                                    {"true_pose", pose_json(truth)},
+                                    {"estimated_pose", pose_json(est)},
+                                    {"false", !real}});
   }
 
   // the map error every few metres driven
@@ -382,10 +394,6 @@ nlohmann::json SlamRunner::metrics() const {
     ate_aligned2.push_back((est.position() - true_path_[i].position()).squaredNorm());
     yaw_aligned2.push_back(std::pow(core::normalize_angle(est.yaw - true_path_[i].yaw), 2));
   }
-  auto pose_json = [](const core::Pose2& p) {
-    return nlohmann::json{{"x_m", p.x}, {"y_m", p.y}, {"yaw_rad", p.yaw}};
-  };
-
   const int total_da = da_correct_ + da_wrong_;
   return {
       {"map_rmse_m", rms(err2)},
@@ -408,10 +416,13 @@ nlohmann::json SlamRunner::metrics() const {
       {"da_correct_fraction", total_da ? static_cast<double>(da_correct_) / total_da : 1.0},
       {"loop_closures", loop_closures_},
       {"false_loop_closures", false_loop_closures_},
+      {"loop_closure_events", loop_closure_events_},
       {"phase", e.phase == core::SlamPhase::kLocalisation ? "localisation" : "mapping"},
       {"updates", update_ms_.size()},
       {"update_ms_median", percentile(update_ms_, 0.5)},
       {"update_ms_p99", percentile(update_ms_, 0.99)},
+      {"update_cpu_ms_median", percentile(update_cpu_ms_, 0.5)},
+      {"update_cpu_ms_p99", percentile(update_cpu_ms_, 0.99)},
   };
 }
 

@@ -115,6 +115,8 @@ class SlamRunner {
 
   // scoring
   std::vector<double> update_ms_;
+  // the same in the thread's CPU time, which other processes on the machine do not inflate
+  std::vector<double> update_cpu_ms_;
   std::vector<double> position_error2_;
   std::vector<double> yaw_error2_;
   std::vector<core::Pose2> true_path_;
@@ -125,6 +127,8 @@ class SlamRunner {
   int da_wrong_ = 0;
   int loop_closures_ = 0;
   int false_loop_closures_ = 0;
+  /// Each loop closure: when, after how far, where the car truly was and thought it was.
+  nlohmann::json loop_closure_events_ = nlohmann::json::array();
   // true cone ids seen by each landmark (by landmark id), for its majority identity
   std::map<int, std::map<int, int>> landmark_votes_;
   std::vector<char> cone_observed_;

@@ -19,6 +19,14 @@ std::string LoopClosureConfig::validate() const {
     s << "loop_closure.returned_fraction: expected in [0, 1]";
   else if (big_orange_min_returned < 0)
     s << "loop_closure.big_orange_min_returned: expected >= 0";
+  else if (!(start_radius_m > 0.0))
+    s << "loop_closure.start_radius_m: expected > 0";
+  else if (!(start_window_m >= 0.0))
+    s << "loop_closure.start_window_m: expected >= 0";
+  else if (start_min_returned < 0)
+    s << "loop_closure.start_min_returned: expected >= 0";
+  else if (!(closure_delay_m >= 0.0))
+    s << "loop_closure.closure_delay_m: expected >= 0";
   return s.str();
 }
 
@@ -44,6 +52,8 @@ LoopState next_loop_state(const LoopClosureConfig& config, LoopState state, bool
 bool loop_closed(const LoopClosureConfig& config, const LoopClosureStats& stats) {
   // never before a lap can have been driven
   if (stats.travel_m < config.min_travel_m) return false;
+  // a lap ends back at the start: elsewhere (after a hairpin, say) old landmarks return too
+  if (!stats.near_start || stats.start_returned < config.start_min_returned) return false;
   // the statistics: enough returned landmarks, and the old ones in view are mostly returned
   const bool consistent = stats.old_matched > 0 && stats.old_matched_returned >=
                                                        config.returned_fraction * stats.old_matched;

@@ -3,7 +3,9 @@
 // (in view, left view, returned), and the loop is closed when enough landmarks first seen long
 // ago return into view from the same direction. The big orange start cones are a second cue,
 // guarded against the false triggers the RaceUp thesis describes (orange cones seen from the
-// wrong place or direction, or before a lap can have been driven).
+// wrong place or direction, or before a lap can have been driven). A lap ends where it began:
+// landmarks seen again after a hairpin also "return", so the loop closes only near the start
+// pose, facing its way, with returned landmarks among the ones first seen at the start.
 
 #include <string>
 
@@ -37,6 +39,17 @@ struct LoopClosureConfig {
   /// first sighting, plus this many returned landmarks, closes the loop.
   double big_orange_heading_rad = 0.5;
   int big_orange_min_returned = 3;
+  /// The lap guard: the estimated pose is within this of the start pose, m, with its heading
+  /// within heading_tolerance_rad of the start heading,
+  double start_radius_m = 20.0;
+  /// and at least start_min_returned of the returned landmarks were first seen within this
+  /// distance driven from the start, m.
+  double start_window_m = 20.0;
+  int start_min_returned = 3;
+  /// Mapping goes on for this distance after the loop is seen to close, so that the lap's end
+  /// is tied to the start's landmarks by many observations before the whole graph is solved
+  /// and the map fixed, m.
+  double closure_delay_m = 20.0;
 
   /// Empty when usable, otherwise "loop_closure.key: what was expected".
   std::string validate() const;
@@ -61,9 +74,14 @@ struct LoopClosureStats {
   int old_matched_returned = 0;
   /// A big orange landmark first seen long ago was matched with a consistent heading.
   bool big_orange_returned = false;
+  /// The estimated pose is near the start pose and faces its way.
+  bool near_start = false;
+  /// Returned landmarks that were first seen within start_window_m of the start.
+  int start_returned = 0;
 };
 
-/// True when the loop has closed, by the returned-landmark statistics or by the big orange cue.
+/// True when the loop has closed, by the returned-landmark statistics or by the big orange cue,
+/// and the lap guard holds.
 bool loop_closed(const LoopClosureConfig& config, const LoopClosureStats& stats);
 
 }  // namespace conesim::slam

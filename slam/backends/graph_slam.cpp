@@ -81,6 +81,7 @@ void GraphSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
   phase_ = core::SlamPhase::kMapping;
   map_complete_ = false;
   loop_closures_ = 0;
+  closure_due_travel_m_ = -1.0;
   gyro_bias_rps_ = {0.0};
   first_localised_pose_ = 1;
   travel_m_ = 0.0;
@@ -116,7 +117,12 @@ void GraphSlam::process(const SlamInput& input) {
   }
   optimise_window();
   const LoopClosureStats stats = update_landmark_statistics();
-  if (loop_closures_ == 0 && loop_closed(config_.loop_closure, stats)) close_loop();
+  if (loop_closures_ == 0 && closure_due_travel_m_ < 0.0 &&
+      loop_closed(config_.loop_closure, stats)) {
+    closure_due_travel_m_ = travel_m_ + config_.loop_closure.closure_delay_m;
+  }
+  if (loop_closures_ == 0 && closure_due_travel_m_ >= 0.0 && travel_m_ >= closure_due_travel_m_)
+    close_loop();
 }
 
 void GraphSlam::predict(const OdometryDelta& odometry) {
@@ -353,9 +359,18 @@ LoopClosureStats GraphSlam::update_landmark_statistics() {
   const double reach = config_.sensor_x_m + config_.max_range_m + 3.0;
   LoopClosureStats stats;
   stats.travel_m = travel_m_;
+  const core::Pose2 start = poses_.front().pose();
+  const LoopClosureConfig& lc = config_.loop_closure;
+  stats.near_start =
+      (pose.position() - start.position()).norm() <= lc.start_radius_m &&
+      std::abs(core::normalize_angle(pose.yaw - start.yaw)) <= lc.heading_tolerance_rad;
+  auto count_returned = [&](const Landmark& lm) {
+    ++stats.returned;
+    if (lm.first_travel_m <= lc.start_window_m) ++stats.start_returned;
+  };
   for (Landmark& lm : landmarks_) {
     if (lm.removed) continue;
-    if (lm.loop_state == LoopState::kReturned && lm.confirmed) ++stats.returned;
+    if (lm.loop_state == LoopState::kReturned && lm.confirmed) count_returned(lm);
     if ((lm.position() - pose.position()).squaredNorm() > reach * reach) continue;
     const bool seen = observed.count(lm.id) > 0;
     const bool in_view = in_field_of_view(pose, lm.position());
@@ -376,7 +391,7 @@ LoopClosureStats GraphSlam::update_landmark_statistics() {
     lm.loop_state = next_loop_state(config_.loop_closure, lm.loop_state, in_view, seen,
                                     since_first_m, heading_change);
     if (lm.confirmed && before != LoopState::kReturned && lm.loop_state == LoopState::kReturned)
-      ++stats.returned;
+      count_returned(lm);
 
     // old landmarks seen now: returned ones, and the big orange cue
     if (!seen || !lm.confirmed || since_first_m < config_.loop_closure.returned_min_travel_m)

@@ -177,6 +177,9 @@ class GraphSlam : public Backend {
   core::SlamPhase phase_ = core::SlamPhase::kMapping;
   bool map_complete_ = false;
   int loop_closures_ = 0;
+  // the loop was seen to close and the global optimisation runs at this distance driven (-1:
+  // not yet seen)
+  double closure_due_travel_m_ = -1.0;
   /// Covariance of the newest pose, for the association gate: grown by the odometry, shrunk by
   /// the matched observations.
   Eigen::Matrix3d pose_covariance_ = Eigen::Matrix3d::Zero();

@@ -30,9 +30,17 @@ TEST(LoopState, NoReturnTooSoonOrFromTheOtherSide) {
             LoopState::kLeftView);
 }
 
+// the lap guard passed: near the start pose, with the start's landmarks returned
+LoopClosureStats back_at_start() {
+  LoopClosureStats s;
+  s.near_start = true;
+  s.start_returned = LoopClosureConfig{}.start_min_returned;
+  return s;
+}
+
 TEST(LoopClosure, ClosesOnEnoughConsistentReturnedLandmarks) {
   const LoopClosureConfig c;
-  LoopClosureStats s;
+  LoopClosureStats s = back_at_start();
   s.travel_m = 300.0;
   s.returned = 8;
   s.old_matched = 6;
@@ -45,7 +53,7 @@ TEST(LoopClosure, ClosesOnEnoughConsistentReturnedLandmarks) {
 
 TEST(LoopClosure, GuardsAgainstFalseTriggers) {
   const LoopClosureConfig c;
-  LoopClosureStats s;
+  LoopClosureStats s = back_at_start();
   s.returned = 20;
   s.old_matched = 6;
   s.old_matched_returned = 6;
@@ -59,9 +67,34 @@ TEST(LoopClosure, GuardsAgainstFalseTriggers) {
   EXPECT_FALSE(loop_closed(c, s));
 }
 
-TEST(LoopClosure, BigOrangeCueNeedsOnlyAFewReturnedLandmarks) {
+TEST(LoopClosure, HairpinReturnsAreNotALap) {
+  // after a hairpin the landmarks of its first leg come back into view from the same side,
+  // long after their first sighting: every statistic says "returned", but the car is not at
+  // the start (generated seed 8 closed its loop there before this guard)
   const LoopClosureConfig c;
   LoopClosureStats s;
+  s.travel_m = 270.0;
+  s.returned = 12;
+  s.old_matched = 8;
+  s.old_matched_returned = 8;
+  s.near_start = false;
+  s.start_returned = 0;
+  EXPECT_FALSE(loop_closed(c, s));
+  // near the start but none of the start's own landmarks back: still not a lap
+  s.near_start = true;
+  EXPECT_FALSE(loop_closed(c, s));
+  s.start_returned = c.start_min_returned - 1;
+  EXPECT_FALSE(loop_closed(c, s));
+  s.start_returned = c.start_min_returned;
+  EXPECT_TRUE(loop_closed(c, s));
+  // the start's landmarks seen again from elsewhere: not near the start, no closure
+  s.near_start = false;
+  EXPECT_FALSE(loop_closed(c, s));
+}
+
+TEST(LoopClosure, BigOrangeCueNeedsOnlyAFewReturnedLandmarks) {
+  const LoopClosureConfig c;
+  LoopClosureStats s = back_at_start();
   s.travel_m = 300.0;
   s.returned = 3;
   s.old_matched = 3;
@@ -80,6 +113,9 @@ TEST(LoopClosureConfig, ValidateNamesTheBadKey) {
   EXPECT_EQ(c.validate(), "");
   c.returned_fraction = 2.0;
   EXPECT_NE(c.validate().find("loop_closure.returned_fraction"), std::string::npos);
+  c = LoopClosureConfig{};
+  c.start_radius_m = 0.0;
+  EXPECT_NE(c.validate().find("loop_closure.start_radius_m"), std::string::npos);
 }
 
 }  // namespace

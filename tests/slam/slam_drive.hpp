@@ -14,6 +14,7 @@
 #include <numbers>
 #include <vector>
 
+#include "core/time.hpp"
 #include "sensors/cone_sensor.hpp"
 #include "sensors/vehicle_sensors.hpp"
 #include "slam/backend.hpp"
@@ -102,13 +103,6 @@ inline double trajectory_rmse_m(const std::vector<core::TimeUs>& stamps,
     ++n;
   }
   return std::sqrt(sq / std::max(1, n));
-}
-
-/// CPU time of the calling thread, ms.
-inline double thread_cpu_ms() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
 }
 
 /// Index of the closest centre-line point.
@@ -206,9 +200,9 @@ inline DriveResult drive(const tracks::Track& track, Backend& backend, const Dri
     auto [observations, labels] = cone_sensor.sample(track, pose, t, nullptr);
     SlamInput input{odometry.take_delta(t), observations};
     const auto start = std::chrono::steady_clock::now();
-    const double cpu_start = thread_cpu_ms();
+    const double cpu_start = core::thread_cpu_ms();
     backend.process(input);
-    update_cpu_ms.push_back(thread_cpu_ms() - cpu_start);
+    update_cpu_ms.push_back(core::thread_cpu_ms() - cpu_start);
     const auto end = std::chrono::steady_clock::now();
     update_ms.push_back(std::chrono::duration<double, std::milli>(end - start).count());
     ++r.batches;
