@@ -55,7 +55,9 @@ double hard_stop_s(const Scenario& s) {
 }
 
 // the pass criteria, one line per failure
-std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResult& r) {
+// slam_metrics: the backend's metrics.json object, null without SLAM
+std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResult& r,
+                                    const nlohmann::json& slam_metrics) {
   std::vector<std::string> failures;
   if (pass.completed && !r.completed)
     failures.push_back("not completed" + (r.dnf_reason.empty() ? "" : ": " + r.dnf_reason));
@@ -68,6 +70,25 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
   if (pass.max_final_time_s > 0.0 && r.final_time_s > pass.max_final_time_s)
     failures.push_back("final time " + std::to_string(r.final_time_s) + " s over " +
                        std::to_string(pass.max_final_time_s) + " s");
+  // the SLAM estimate's quality
+  if (slam_metrics.is_null()) return failures;
+  auto figure = [&](const char* key) { return slam_metrics.at(key).get<double>(); };
+  if (pass.max_map_rmse_m && figure("map_rmse_m") > *pass.max_map_rmse_m)
+    failures.push_back("SLAM map RMSE " + std::to_string(figure("map_rmse_m")) + " m over " +
+                       std::to_string(*pass.max_map_rmse_m) + " m");
+  if (pass.max_ate_rmse_m && figure("ate_rmse_m") > *pass.max_ate_rmse_m)
+    failures.push_back("SLAM trajectory RMSE " + std::to_string(figure("ate_rmse_m")) +
+                       " m over " + std::to_string(*pass.max_ate_rmse_m) + " m");
+  if (pass.min_da_correct_fraction &&
+      figure("da_correct_fraction") < *pass.min_da_correct_fraction)
+    failures.push_back("SLAM associations " + std::to_string(figure("da_correct_fraction")) +
+                       " correct, at least " + std::to_string(*pass.min_da_correct_fraction) +
+                       " required");
+  if (pass.max_false_loop_closures &&
+      figure("false_loop_closures") > *pass.max_false_loop_closures)
+    failures.push_back(std::to_string(static_cast<int>(figure("false_loop_closures"))) +
+                       " false loop closures, at most " +
+                       std::to_string(*pass.max_false_loop_closures) + " allowed");
   return failures;
 }
 
@@ -248,7 +269,8 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     result.referee.completed = false;
     result.referee.dnf_reason = dnf_override;
   }
-  result.failures = check_pass(s.pass, result.referee);
+  const nlohmann::json slam_metrics = slam ? slam->metrics() : nlohmann::json();
+  result.failures = check_pass(s.pass, result.referee, slam_metrics);
   result.passed = result.failures.empty();
   result.sim_time_s = core::to_seconds(t);
   result.wall_time_s = wall_s;
@@ -281,7 +303,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       {"real_time_factor", round_to(result.sim_time_s / std::max(wall_s, 1e-9), 0.1)},
       {"passed", result.passed},
       {"pass_failures", result.failures},
-      {"slam", slam ? nlohmann::json{{slam->name(), slam->metrics()}} : nlohmann::json::object()},
+      {"slam", slam ? nlohmann::json{{slam->name(), slam_metrics}} : nlohmann::json::object()},
       // the contract's perception figures (raw-data perception) and always the mode
       {"perception", rig.perception() ? rig.perception()->metrics()
                                       : nlohmann::json{{"mode", s.perception}}},

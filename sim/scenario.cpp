@@ -432,7 +432,24 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                         }},
                        integer("max_cones_hit", s.pass.max_cones_hit, w),
                        integer("max_off_course", s.pass.max_off_course, w),
-                       number("max_final_time_s", s.pass.max_final_time_s, w)});
+                       number("max_final_time_s", s.pass.max_final_time_s, w),
+                       {"max_map_rmse_m",
+                        [&](const YAML::Node& v) {
+                          s.pass.max_map_rmse_m = read_number(v, w, "max_map_rmse_m");
+                        }},
+                       {"max_ate_rmse_m",
+                        [&](const YAML::Node& v) {
+                          s.pass.max_ate_rmse_m = read_number(v, w, "max_ate_rmse_m");
+                        }},
+                       {"min_da_correct_fraction",
+                        [&](const YAML::Node& v) {
+                          s.pass.min_da_correct_fraction =
+                              read_number(v, w, "min_da_correct_fraction");
+                        }},
+                       {"max_false_loop_closures", [&](const YAML::Node& v) {
+                          s.pass.max_false_loop_closures =
+                              static_cast<int>(read_integer(v, w, "max_false_loop_closures"));
+                        }}});
        }},
   };
   read_section(root, top, fields);
@@ -470,6 +487,24 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   }
   if (s.pass.max_cones_hit < 0 || s.pass.max_off_course < 0 || s.pass.max_final_time_s < 0.0)
     throw InputError(fname, "pass", "expected limits >= 0");
+  if (s.pass.max_map_rmse_m && !(*s.pass.max_map_rmse_m > 0.0))
+    throw InputError(fname, "pass.max_map_rmse_m", "expected a distance > 0 m");
+  if (s.pass.max_ate_rmse_m && !(*s.pass.max_ate_rmse_m > 0.0))
+    throw InputError(fname, "pass.max_ate_rmse_m", "expected a distance > 0 m");
+  if (s.pass.min_da_correct_fraction &&
+      !(*s.pass.min_da_correct_fraction >= 0.0 && *s.pass.min_da_correct_fraction <= 1.0))
+    throw InputError(fname, "pass.min_da_correct_fraction", "expected a fraction from 0 to 1");
+  if (s.pass.max_false_loop_closures && *s.pass.max_false_loop_closures < 0)
+    throw InputError(fname, "pass.max_false_loop_closures", "expected a count >= 0");
+  {
+    const PassCriteria& p = s.pass;
+    const bool slam_criteria = p.max_map_rmse_m || p.max_ate_rmse_m ||
+                               p.min_da_correct_fraction || p.max_false_loop_closures;
+    if (slam_criteria && s.slam == "none")
+      throw InputError(fname, "pass",
+                       "SLAM criteria (max_map_rmse_m, max_ate_rmse_m, min_da_correct_fraction, "
+                       "max_false_loop_closures) need slam: graph");
+  }
   if (!(s.start_delay_s >= 0.0 && s.start_delay_s <= 60.0))
     throw InputError(fname, "start_delay_s", "expected a delay from 0 to 60 s");
   {

@@ -59,6 +59,13 @@ struct PassCriteria {
   int max_off_course = 0;
   /// Upper bound of the final time, seconds (0: none).
   double max_final_time_s = 0.0;
+  /// The SLAM estimate's quality (runs with slam only; unset: not checked): map and trajectory
+  /// RMSE against the truth (metrics.json slam.<backend>.map_rmse_m and ate_rmse_m), m, the
+  /// fraction of correct associations and the false loop closures allowed.
+  std::optional<double> max_map_rmse_m;
+  std::optional<double> max_ate_rmse_m;
+  std::optional<double> min_da_correct_fraction;
+  std::optional<int> max_false_loop_closures;
 };
 
 /// One scenario, fully resolved.

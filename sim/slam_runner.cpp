@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <stdexcept>
 
 #include "core/time.hpp"
@@ -105,6 +106,9 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
     for (const auto& c : track.cones)
       prior.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-4});
     backend_->set_prior_map(prior);
+    // its landmarks (ids in the order given) are those cones: no vote of the run outweighs that
+    for (size_t k = 0; k < track.cones.size(); ++k)
+      landmark_votes_[static_cast<int>(k)][track.cones[k].id] = std::numeric_limits<int>::max() / 2;
   }
   last_estimate_ = backend_->estimate();
   last_frame_pose_ = start;

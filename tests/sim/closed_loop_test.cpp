@@ -55,6 +55,28 @@ TEST(ClosedLoop, SkidpadCompletesFourLapsWithoutPenalties) {
   EXPECT_EQ(r.referee.off_course, 0);
 }
 
+TEST(ClosedLoop, SkidpadLocalisesOnItsKnownLayout) {
+  // the layout is the prior map: every association is to a known cone, checked by its id
+  const RunResult r = run_shipped("skidpad-graphslam", 1, "skidpad-slam");
+  EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
+  EXPECT_TRUE(r.referee.cones_hit.empty());
+  const nlohmann::json& g = r.metrics["slam"]["graph"];
+  EXPECT_EQ(g["phase"].get<std::string>(), "localisation");
+  EXPECT_GE(g["da_correct_fraction"].get<double>(), 0.99);
+  EXPECT_LE(g["ate_rmse_m"].get<double>(), 0.15);
+  EXPECT_TRUE(r.passed);
+}
+
+TEST(ClosedLoop, SlamPassCriteriaFailTheRun) {
+  // a run that drives well but whose map misses the scenario's bound does not pass, and says why
+  const RunResult r =
+      run_shipped("acceleration-graphslam", 1, "slam-pass", {"pass.max_map_rmse_m=0.001"});
+  EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
+  EXPECT_FALSE(r.passed);
+  ASSERT_EQ(r.failures.size(), 1u);
+  EXPECT_NE(r.failures[0].find("SLAM map RMSE"), std::string::npos) << r.failures[0];
+}
+
 TEST(ClosedLoop, AutocrossIsDeterministicBySeed) {
   const RunResult a = run_shipped("autocross", 2, "a");
   const RunResult b = run_shipped("autocross", 2, "b");

@@ -84,6 +84,17 @@ TEST_F(ScenarioFile, BadInputNamesFileLineAndKey) {
   EXPECT_NE(error_of("event: autocross\nsensors: {lidar: {latency_s: 0.2}}\n")
                 .find("sensors.lidar.latency_s"),
             std::string::npos);
+  // SLAM pass criteria: sane values, and only where SLAM runs
+  const std::string slam = "event: autocross\nperception: cone_sensor\nslam: graph\n";
+  EXPECT_NE(error_of(slam + "pass: {max_map_rmse_m: -1}\n").find("pass.max_map_rmse_m"),
+            std::string::npos);
+  EXPECT_NE(error_of(slam + "pass: {min_da_correct_fraction: 1.5}\n")
+                .find("pass.min_da_correct_fraction: expected a fraction"),
+            std::string::npos);
+  EXPECT_NE(error_of(slam + "pass: {max_false_loop_closures: x}\n").find("max_false_loop_closures"),
+            std::string::npos);
+  EXPECT_NE(error_of("event: autocross\npass: {max_ate_rmse_m: 0.2}\n").find("need slam: graph"),
+            std::string::npos);
 }
 
 TEST_F(ScenarioFile, UnknownScenarioNameListsTheShippedOnes) {
