@@ -16,7 +16,6 @@ namespace conesim::sensors {
 
 namespace {
 
-constexpr int kPacketSize = 16;
 constexpr int kClassCount = 5;
 // the ground quad reaches this far beyond the cones and the start, on top of the max range
 constexpr double kGroundMarginM = 20.0;
@@ -85,6 +84,14 @@ struct Fan {
   }
 };
 
+// a cone a column's rays may pass near: its centre from the column's origin, the radius of its
+// footprint with the slack, and its top
+struct NearCone {
+  float x, y, radius, top_m;
+  // index into the cones of the scene
+  int index;
+};
+
 // tangent of the angle between a horizontal direction and a unit axis (wide past 60 degrees)
 bool tan_angle_to(float dx, float dy, float axis_x, float axis_y, float& tan_angle) {
   const float along = dx * axis_x + dy * axis_y;
@@ -102,11 +109,10 @@ struct Lidar::Impl {
     float cos_elevation;
     float sin_elevation;
   };
-  // a cone of the track: its instance in the scene, its footprint and its label
+  // a cone of the track: its class's mesh, its place, its footprint and its label
   struct SceneCone {
     int cone_id = 0;
     int cls = 0;
-    unsigned instance = RTC_INVALID_GEOMETRY_ID;
     float x = 0.f, y = 0.f;
     // every point of the cone lies within this horizontal distance of (x, y), and below top_m
     float footprint_m = 0.f;
@@ -116,8 +122,7 @@ struct Lidar::Impl {
 
   LidarConfig config;
   RTCDevice device = nullptr;
-  // the track: the ground and one instance per cone of its class's scene
-  RTCScene scene = nullptr;
+  // one scene per cone class, holding its mesh in the cone's own frame
   std::array<RTCScene, kClassCount> class_scenes{};
   std::vector<Channel> channels;
   std::vector<float> column_cos;
@@ -127,10 +132,8 @@ struct Lidar::Impl {
   // reflectivity of each triangle of each class's mesh
   std::array<std::vector<float>, kClassCount> class_reflectivity;
   std::vector<SceneCone> cones;
-  // what each geometry of the scene is: a cone (index into cones) or the ground (-1)
-  std::vector<int> cone_of_geometry;
   std::unordered_map<int, int> cone_index;
-  // the ground quad, for the rays that can only meet the ground
+  // the ground: the plane z = 0 over this rectangle
   float ground_lo_x = 0.f, ground_lo_y = 0.f, ground_hi_x = 0.f, ground_hi_y = 0.f;
   // nothing in the scene is higher than this: rays are cut where they climb above it
   float scene_top_z = 0.f;
@@ -140,7 +143,6 @@ struct Lidar::Impl {
   Eigen::Vector3d mount_translation = Eigen::Vector3d::Zero();
 
   ~Impl() {
-    if (scene) rtcReleaseScene(scene);
     for (RTCScene s : class_scenes)
       if (s) rtcReleaseScene(s);
     if (device) rtcReleaseDevice(device);
@@ -153,26 +155,18 @@ struct Lidar::Impl {
     std::vector<float> range, intensity;
     std::vector<int> label;
     std::array<Eigen::Vector3f, kChunkColumns> origin;
-    std::array<bool, kChunkColumns> near_cone{};
     explicit ChunkRays(size_t n)
         : dir_x(n), dir_y(n), dir_z(n), length(n), range(n), intensity(n), label(n) {}
-  };
-  // up to 16 rays near cones, cast together through the scene, and their places in the chunk
-  struct Packet {
-    RTCRayHit16 rays;
-    std::array<int, kPacketSize> valid{};
-    std::array<int, kPacketSize> slot{};
-    int lanes = 0;
   };
 
   void build_beams();
   void build_scene(const tracks::Track& track);
   void throw_on_device_error(const char* what) const;
   float intensity_of(float reflectivity_of_surface, float cos_incidence, float range) const;
-  void add_to_packet(Packet& packet, const ChunkRays& rays, int slot,
-                     const Eigen::Vector3f& origin) const;
-  void cast_packet(Packet& packet, RTCIntersectContext& context, ChunkRays& rays,
-                   LidarSweepStats& stats) const;
+  void hit_ground(ChunkRays& rays, int slot, const Eigen::Vector3f& origin, float max_range,
+                  float ground_reflectivity) const;
+  void hit_cone(const SceneCone& cone, const Eigen::Vector3f& origin, RTCIntersectContext& context,
+                ChunkRays& rays, int slot, float& reach) const;
 };
 
 float Lidar::Impl::intensity_of(float reflectivity_of_surface, float cos_incidence,
@@ -182,67 +176,53 @@ float Lidar::Impl::intensity_of(float reflectivity_of_surface, float cos_inciden
          (1.f + range * range * inverse_squared_falloff);
 }
 
-void Lidar::Impl::add_to_packet(Packet& packet, const ChunkRays& rays, int slot,
-                                const Eigen::Vector3f& origin) const {
-  const int i = packet.lanes++;
-  RTCRay16& ray = packet.rays.ray;
-  packet.valid[i] = -1;
-  packet.slot[i] = slot;
-  packet.rays.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
-  packet.rays.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
-  ray.org_x[i] = origin.x();
-  ray.org_y[i] = origin.y();
-  ray.org_z[i] = origin.z();
-  ray.dir_x[i] = rays.dir_x[slot];
-  ray.dir_y[i] = rays.dir_y[slot];
-  ray.dir_z[i] = rays.dir_z[slot];
-  ray.tnear[i] = 0.f;
-  ray.tfar[i] = rays.length[slot];
-  ray.time[i] = 0.f;
-  ray.mask[i] = 0xFFFFFFFFu;
-  ray.id[i] = static_cast<unsigned>(i);
-  ray.flags[i] = 0;
+// the ground plane, if the ray crosses it ahead within the max range and over the ground
+// rectangle; without branches, so that the rays of a column clear of every cone go through
+// together
+inline void Lidar::Impl::hit_ground(ChunkRays& rays, int slot, const Eigen::Vector3f& origin,
+                                    float max_range, float ground_reflectivity) const {
+  const float dz = rays.dir_z[slot];
+  const float t = -origin.z() / dz;
+  const float x = origin.x() + t * rays.dir_x[slot], y = origin.y() + t * rays.dir_y[slot];
+  const bool hit = t >= 0.f && t <= max_range && x >= ground_lo_x && x <= ground_hi_x &&
+                   y >= ground_lo_y && y <= ground_hi_y;
+  rays.label[slot] = hit ? core::PointCloudLabels::kGroundLabel : kNoReturn;
+  rays.range[slot] = t;
+  rays.intensity[slot] = intensity_of(ground_reflectivity, std::abs(dz), t);
 }
 
-void Lidar::Impl::cast_packet(Packet& packet, RTCIntersectContext& context, ChunkRays& rays,
-                              LidarSweepStats& stats) const {
-  if (packet.lanes == 0) return;
-  // idle lanes stay invalid, with a harmless ray: Embree's packet kernels may still read them
-  RTCRay16& idle = packet.rays.ray;
-  for (int i = packet.lanes; i < kPacketSize; ++i) {
-    packet.valid[i] = 0;
-    idle.org_x[i] = idle.org_y[i] = idle.org_z[i] = 0.f;
-    idle.dir_x[i] = idle.dir_y[i] = 0.f;
-    idle.dir_z[i] = 1.f;
-    idle.tnear[i] = idle.tfar[i] = idle.time[i] = 0.f;
-    idle.mask[i] = 0u;
-    idle.id[i] = idle.flags[i] = 0u;
-    packet.rays.hit.geomID[i] = packet.rays.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
-  }
-  rtcIntersect16(packet.valid.data(), scene, &context, &packet.rays);
-  stats.traced += packet.lanes;
+// the cone's mesh, if the ray meets it nearer than reach (then reach becomes its range): the ray
+// moved into the cone's frame, which is the track frame shifted to the cone's place
+void Lidar::Impl::hit_cone(const SceneCone& cone, const Eigen::Vector3f& origin,
+                           RTCIntersectContext& context, ChunkRays& rays, int slot,
+                           float& reach) const {
+  RTCRayHit ray;
+  ray.ray.org_x = origin.x() - cone.x;
+  ray.ray.org_y = origin.y() - cone.y;
+  ray.ray.org_z = origin.z();
+  ray.ray.dir_x = rays.dir_x[slot];
+  ray.ray.dir_y = rays.dir_y[slot];
+  ray.ray.dir_z = rays.dir_z[slot];
+  ray.ray.tnear = 0.f;
+  ray.ray.tfar = reach;
+  ray.ray.time = 0.f;
+  ray.ray.mask = 0xFFFFFFFFu;
+  ray.ray.id = 0;
+  ray.ray.flags = 0;
+  ray.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  ray.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(class_scenes[cone.cls], &context, &ray);
+  if (ray.hit.geomID == RTC_INVALID_GEOMETRY_ID) return;
 
-  // each lane's hit: the ground or a cone instance, its range and intensity before noise
-  const RTCRay16& ray = packet.rays.ray;
-  const RTCHit16& hit = packet.rays.hit;
-  for (int i = 0; i < packet.lanes; ++i) {
-    const int slot = packet.slot[i];
-    rays.label[slot] = kNoReturn;
-    if (hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
-    const unsigned geometry =
-        hit.instID[0][i] != RTC_INVALID_GEOMETRY_ID ? hit.instID[0][i] : hit.geomID[i];
-    const int cone = cone_of_geometry[geometry];
-    const float surface = cone < 0 ? reflectivity[static_cast<int>(SurfaceMaterial::kGround)]
-                                   : class_reflectivity[cones[cone].cls][hit.primID[i]];
-    // the instances only translate, so the normal is the same in the track frame
-    const Eigen::Vector3f normal(hit.Ng_x[i], hit.Ng_y[i], hit.Ng_z[i]);
-    const Eigen::Vector3f dir(ray.dir_x[i], ray.dir_y[i], ray.dir_z[i]);
-    const float cos_incidence = std::abs(dir.dot(normal)) / normal.norm();
-    rays.label[slot] = cone < 0 ? core::PointCloudLabels::kGroundLabel : cones[cone].cone_id;
-    rays.range[slot] = ray.tfar[i];
-    rays.intensity[slot] = intensity_of(surface, cos_incidence, ray.tfar[i]);
-  }
-  packet.lanes = 0;
+  // the hit's range and its intensity before noise (the shift leaves the normal as it is)
+  const Eigen::Vector3f normal(ray.hit.Ng_x, ray.hit.Ng_y, ray.hit.Ng_z);
+  const Eigen::Vector3f dir(ray.ray.dir_x, ray.ray.dir_y, ray.ray.dir_z);
+  const float cos_incidence = std::abs(dir.dot(normal)) / normal.norm();
+  reach = ray.ray.tfar;
+  rays.label[slot] = cone.cone_id;
+  rays.range[slot] = ray.ray.tfar;
+  rays.intensity[slot] =
+      intensity_of(class_reflectivity[cone.cls][ray.hit.primID], cos_incidence, ray.ray.tfar);
 }
 
 void Lidar::Impl::build_beams() {
@@ -279,12 +259,8 @@ void Lidar::Impl::build_beams() {
 void Lidar::Impl::build_scene(const tracks::Track& track) {
   device = rtcNewDevice("threads=1");
   if (!device) throw std::runtime_error("lidar: Embree device could not be created");
-  scene = rtcNewScene(device);
-  // the top level holds a few hundred instances: a knocked cone rebuilds it in well under a
-  // millisecond, while the class meshes below it are never rebuilt
-  rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_MEDIUM);
 
-  // ground: one quad over the cones and the start pose, reaching the max range beyond them
+  // ground: a rectangle over the cones and the start pose, reaching the max range beyond them
   Eigen::Vector2d lo(track.start.x, track.start.y), hi = lo;
   for (const tracks::Cone& cone : track.cones) {
     lo = lo.cwiseMin(cone.position);
@@ -297,14 +273,6 @@ void Lidar::Impl::build_scene(const tracks::Track& track) {
   ground_lo_y = static_cast<float>(lo.y());
   ground_hi_x = static_cast<float>(hi.x());
   ground_hi_y = static_cast<float>(hi.y());
-  const std::vector<Eigen::Vector3f> ground_vertices{{ground_lo_x, ground_lo_y, 0.f},
-                                                     {ground_hi_x, ground_lo_y, 0.f},
-                                                     {ground_hi_x, ground_hi_y, 0.f},
-                                                     {ground_lo_x, ground_hi_y, 0.f}};
-  RTCGeometry ground = make_triangle_geometry(device, ground_vertices, {{0, 1, 2}, {0, 2, 3}});
-  const unsigned ground_id = rtcAttachGeometry(scene, ground);
-  rtcReleaseGeometry(ground);
-  cone_of_geometry.assign(ground_id + 1, -1);
 
   // one scene per class, built once at high quality, its materials shared by its cones
   std::array<float, kClassCount> footprint{};
@@ -323,27 +291,16 @@ void Lidar::Impl::build_scene(const tracks::Track& track) {
     rtcCommitScene(class_scenes[k]);
   }
 
-  // every cone: an instance of its class's scene moved to the cone's place
+  // every cone: its class and its place
   for (const tracks::Cone& cone : track.cones) {
     const int k = class_index(cone.cls);
     const float x = static_cast<float>(cone.position.x());
     const float y = static_cast<float>(cone.position.y());
-    const float transform[12] = {1.f, 0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, x, y, 0.f};
-    RTCGeometry instance = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
-    rtcSetGeometryInstancedScene(instance, class_scenes[k]);
-    rtcSetGeometryTransform(instance, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, transform);
-    rtcCommitGeometry(instance);
-    const unsigned id = rtcAttachGeometry(scene, instance);
-    rtcReleaseGeometry(instance);
-    if (cone_of_geometry.size() <= id) cone_of_geometry.resize(id + 1, -1);
-    cone_of_geometry[id] = static_cast<int>(cones.size());
     cone_index[cone.id] = static_cast<int>(cones.size());
     const float top = static_cast<float>(cone_shape(cone.cls).height_m + kTopSlackM);
-    cones.push_back({cone.id, k, id, x, y, footprint[k], top, true});
-    scene_top_z =
-        std::max(scene_top_z, static_cast<float>(cone_shape(cone.cls).height_m + kTopSlackM));
+    cones.push_back({cone.id, k, x, y, footprint[k], top, true});
+    scene_top_z = std::max(scene_top_z, top);
   }
-  rtcCommitScene(scene);
   throw_on_device_error("building the scene");
 }
 
@@ -375,18 +332,7 @@ void Lidar::set_cone_present(int cone_id, bool present) {
   const auto it = impl_->cone_index.find(cone_id);
   if (it == impl_->cone_index.end())
     throw std::out_of_range("lidar: no cone with id " + std::to_string(cone_id));
-  Impl::SceneCone& cone = impl_->cones[it->second];
-  if (cone.present == present) return;
-
-  // enabling or disabling an instance takes effect when the top level is committed again
-  cone.present = present;
-  RTCGeometry instance = rtcGetGeometry(impl_->scene, cone.instance);
-  if (present)
-    rtcEnableGeometry(instance);
-  else
-    rtcDisableGeometry(instance);
-  rtcCommitScene(impl_->scene);
-  impl_->throw_on_device_error("updating the scene");
+  impl_->cones[it->second].present = present;
 }
 
 bool Lidar::cone_present(int cone_id) const {
@@ -408,16 +354,34 @@ core::Pose3 Lidar::sensor_pose(const core::Pose3& vehicle_pose) const {
 
 LidarScan Lidar::sweep(core::TimeUs sweep_start, const PoseHistory& vehicle_poses,
                        core::Rng& rng) const {
+  LidarScan scan;
+  LidarNoise noise(rng);
+  sweep_columns(sweep_start, 0, impl_->config.columns, vehicle_poses, noise, scan);
+  return scan;
+}
+
+int Lidar::column_block() const {
+  return kChunkColumns;
+}
+
+void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column_end,
+                          const PoseHistory& vehicle_poses, LidarNoise& noise,
+                          LidarScan& scan) const {
   const Impl& im = *impl_;
   const LidarConfig& cfg = im.config;
   const int channel_count = static_cast<int>(im.channels.size());
   const float max_range = static_cast<float>(cfg.max_range_m);
+  if (column_begin < 0 || column_end > cfg.columns || column_begin >= column_end)
+    throw std::invalid_argument("lidar sweep: no columns [" + std::to_string(column_begin) + ", " +
+                                std::to_string(column_end) + ") in a sweep of " +
+                                std::to_string(cfg.columns));
 
   // the poses must span every column's firing time
-  const core::TimeUs end = sweep_end(sweep_start);
-  if (!vehicle_poses.covers(sweep_start, end)) {
+  const core::TimeUs first = column_time(sweep_start, column_begin);
+  const core::TimeUs end = column_time(sweep_start, column_end - 1);
+  if (!vehicle_poses.covers(first, end)) {
     std::ostringstream msg;
-    msg << "lidar sweep: the sweep needs poses over [" << sweep_start << ", " << end
+    msg << "lidar sweep: the columns need poses over [" << first << ", " << end
         << "] us, the history covers ";
     if (vehicle_poses.empty())
       msg << "nothing";
@@ -428,36 +392,38 @@ LidarScan Lidar::sweep(core::TimeUs sweep_start, const PoseHistory& vehicle_pose
 
   // the scan, its labels and the sensor poses at the first and last columns; room for a
   // return from every ray, so that the cloud never moves while it grows
-  LidarScan scan;
-  scan.cloud.stamp = sweep_start;
-  scan.cloud.points.reserve(static_cast<size_t>(cfg.columns) * channel_count);
-  scan.labels.cone_id.reserve(scan.cloud.points.capacity());
-  scan.labels.sensor_pose_start = sensor_pose(vehicle_poses.at(sweep_start));
-  scan.labels.sensor_pose_end = sensor_pose(vehicle_poses.at(end));
+  if (column_begin == 0) {
+    scan.cloud.stamp = sweep_start;
+    scan.cloud.points.reserve(static_cast<size_t>(cfg.columns) * channel_count);
+    scan.labels.cone_id.reserve(scan.cloud.points.capacity());
+    scan.labels.sensor_pose_start = sensor_pose(vehicle_poses.at(sweep_start));
+  }
+  if (column_end == cfg.columns) scan.labels.sensor_pose_end = sensor_pose(vehicle_poses.at(end));
 
   // the cones standing, for the test of which rays pass near one
   std::vector<const Impl::SceneCone*> standing;
   standing.reserve(im.cones.size());
   for (const Impl::SceneCone& cone : im.cones)
     if (cone.present) standing.push_back(&cone);
-  std::vector<const Impl::SceneCone*> chunk_cones, column_cones;
+  std::vector<const Impl::SceneCone*> chunk_cones;
+  std::vector<NearCone> column_cones;
   const float ground_reflectivity = im.reflectivity[static_cast<int>(SurfaceMaterial::kGround)];
 
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   Impl::ChunkRays rays(static_cast<size_t>(kChunkColumns) * channel_count);
-  Impl::Packet packet;
   std::array<Fan, kChunkColumns> column_fans;
   size_t pose_cursor = 0;
-  core::ZigguratNormals normal(rng);
+  core::Rng& rng = noise.rng;
+  core::ZigguratNormals& normal = noise.normal;
   const float range_sigma = static_cast<float>(cfg.range_noise_sigma_m);
   const float intensity_sigma = static_cast<float>(cfg.intensity_noise_sigma);
   const float min_range = static_cast<float>(cfg.min_range_m);
   const bool dropout = cfg.dropout_probability > 0.0;
 
-  for (int c0 = 0; c0 < cfg.columns; c0 += kChunkColumns) {
-    const int chunk = std::min(kChunkColumns, cfg.columns - c0);
+  for (int c0 = column_begin; c0 < column_end; c0 += kChunkColumns) {
+    const int chunk = std::min(kChunkColumns, column_end - c0);
 
     // every ray of the chunk's columns from the sensor pose when its column fires, and each
     // column's fan of rays seen from above
@@ -491,7 +457,7 @@ LidarScan Lidar::sweep(core::TimeUs sweep_start, const PoseHistory& vehicle_pose
 
       // headings of the beams turn monotonically with elevation: the lowest and the highest
       // bound the column's fan
-      const float norm = std::hypot(heading.x(), heading.y());
+      const float norm = std::sqrt(heading.x() * heading.x() + heading.y() * heading.y());
       fan.wide = !(norm > 0.5f);
       if (!fan.wide) {
         fan.axis_x = heading.x() / norm;
@@ -518,16 +484,16 @@ LidarScan Lidar::sweep(core::TimeUs sweep_start, const PoseHistory& vehicle_pose
     }
     chunk_fan.origin_x = sum_x / static_cast<float>(chunk);
     chunk_fan.origin_y = sum_y / static_cast<float>(chunk);
-    const float axis_norm = std::hypot(axis_x, axis_y);
+    const float axis_norm = std::sqrt(axis_x * axis_x + axis_y * axis_y);
     chunk_fan.wide = chunk_fan.wide || !(axis_norm > 0.5f * static_cast<float>(chunk));
     if (!chunk_fan.wide) {
       chunk_fan.axis_x = axis_x / axis_norm;
       chunk_fan.axis_y = axis_y / axis_norm;
     }
     for (int j = 0; j < chunk; ++j) {
-      chunk_fan.spread =
-          std::max(chunk_fan.spread, std::hypot(column_fans[j].origin_x - chunk_fan.origin_x,
-                                                column_fans[j].origin_y - chunk_fan.origin_y));
+      const float ox = column_fans[j].origin_x - chunk_fan.origin_x;
+      const float oy = column_fans[j].origin_y - chunk_fan.origin_y;
+      chunk_fan.spread = std::max(chunk_fan.spread, std::sqrt(ox * ox + oy * oy));
     }
     // its half angle: each column's own plus the turn of its axis from the chunk's
     float cos_half = 1.f;
@@ -548,67 +514,62 @@ LidarScan Lidar::sweep(core::TimeUs sweep_start, const PoseHistory& vehicle_pose
       if (chunk_fan.may_meet(cone->x, cone->y, cone->footprint_m + kFootprintSlackM))
         chunk_cones.push_back(cone);
 
-    // each ray: through the scene when it passes near a cone (or the sensor is not above the
-    // ground), else straight to the ground
+    // each ray: the ground plane, and the meshes of the cones its column's fan may meet that
+    // the ray itself passes near (all of them when the sensor is not above the ground)
     for (int j = 0; j < chunk; ++j) {
       const Eigen::Vector3f& origin = rays.origin[j];
+      const int first = j * channel_count, last = first + channel_count;
       const bool anywhere = !(origin.z() > 0.f);
       column_cones.clear();
       for (const Impl::SceneCone* cone : chunk_cones)
         if (column_fans[j].may_meet(cone->x, cone->y, cone->footprint_m + kFootprintSlackM))
-          column_cones.push_back(cone);
-      for (int ch = 0; ch < channel_count; ++ch) {
-        const int slot = j * channel_count + ch;
+          column_cones.push_back({cone->x - origin.x(), cone->y - origin.y(),
+                                  cone->footprint_m + kFootprintSlackM, cone->top_m,
+                                  static_cast<int>(cone - im.cones.data())});
+
+      // a column clear of every cone (most of them) meets only the ground
+      if (column_cones.empty() && !anywhere) {
+        for (int slot = first; slot < last; ++slot)
+          im.hit_ground(rays, slot, origin, max_range, ground_reflectivity);
+        continue;
+      }
+
+      for (int slot = first; slot < last; ++slot) {
+        // a ray that ends where it starts meets nothing
         const float length = rays.length[slot];
-        bool near = anywhere;
-        // near a cone: the ray's track on the ground enters the cone's footprint, and the ray
-        // is below the cone's top somewhere over it (a steep ray is always near)
-        const float dx = rays.dir_x[slot], dy = rays.dir_y[slot];
-        const float squared = dx * dx + dy * dy;
-        for (size_t k = 0; k < column_cones.size() && !near; ++k) {
-          const Impl::SceneCone& cone = *column_cones[k];
-          const float r = cone.footprint_m + kFootprintSlackM;
-          const float wx = cone.x - origin.x(), wy = cone.y - origin.y();
-          if (!(squared > 1e-6f)) {
-            near = true;
-            break;
-          }
-          const float closest = (wx * dx + wy * dy) / squared;
-          const float t = std::clamp(closest, 0.f, length);
-          const float ex = wx - t * dx, ey = wy - t * dy;
-          if (ex * ex + ey * ey > r * r) continue;
-          // the stretch of the ray over the footprint, and its lowest point there
-          const float miss_squared = std::max(0.f, wx * wx + wy * wy - closest * closest * squared);
-          const float half = std::sqrt(std::max(0.f, r * r - miss_squared) / squared);
-          const float enter = std::max(0.f, closest - half);
-          const float leave = std::min(length, closest + half);
-          const float lowest =
-              origin.z() + rays.dir_z[slot] * (rays.dir_z[slot] > 0.f ? enter : leave);
-          near = lowest <= cone.top_m;
-        }
-        if (!near) {
-          // clear of every cone: the ground plane, if the ray descends to it within the max
-          // range and over the ground quad (the origin is above the ground)
-          rays.label[slot] = Impl::kNoReturn;
-          const float dz = rays.dir_z[slot];
-          if (!(dz < 0.f)) continue;
-          const float t = -origin.z() / dz;
-          if (t > max_range) continue;
-          const float x = origin.x() + t * dx, y = origin.y() + t * dy;
-          if (x < im.ground_lo_x || x > im.ground_hi_x || y < im.ground_lo_y || y > im.ground_hi_y)
-            continue;
-          rays.label[slot] = core::PointCloudLabels::kGroundLabel;
-          rays.range[slot] = t;
-          rays.intensity[slot] = im.intensity_of(ground_reflectivity, -dz, t);
-          continue;
-        }
         rays.label[slot] = Impl::kNoReturn;
         if (!(length > 0.f)) continue;
-        im.add_to_packet(packet, rays, slot, origin);
-        if (packet.lanes == kPacketSize) im.cast_packet(packet, context, rays, scan.stats);
+
+        // the ground, then every cone the ray passes near, through its mesh: near when the
+        // ray's track on the ground enters the cone's footprint and the ray is below the cone's
+        // top somewhere over it (a steep ray, or one from under the ground, is near them all)
+        const float dx = rays.dir_x[slot], dy = rays.dir_y[slot], dz = rays.dir_z[slot];
+        const float squared = dx * dx + dy * dy;
+        const bool near_all = anywhere || !(squared > 1e-6f);
+        im.hit_ground(rays, slot, origin, max_range, ground_reflectivity);
+        float reach = rays.label[slot] == Impl::kNoReturn ? length : rays.range[slot];
+        bool traced = false;
+        for (const NearCone& cone : column_cones) {
+          if (!near_all) {
+            const float closest = (cone.x * dx + cone.y * dy) / squared;
+            const float t = std::min(std::max(closest, 0.f), length);
+            const float ex = cone.x - t * dx, ey = cone.y - t * dy;
+            if (ex * ex + ey * ey > cone.radius * cone.radius) continue;
+            // the stretch of the ray over the footprint, and its lowest point there
+            const float miss_squared =
+                std::max(0.f, cone.x * cone.x + cone.y * cone.y - closest * closest * squared);
+            const float half =
+                std::sqrt(std::max(0.f, cone.radius * cone.radius - miss_squared) / squared);
+            const float enter = std::max(0.f, closest - half);
+            const float leave = std::min(length, closest + half);
+            if (origin.z() + dz * (dz > 0.f ? enter : leave) > cone.top_m) continue;
+          }
+          im.hit_cone(im.cones[cone.index], origin, context, rays, slot, reach);
+          traced = true;
+        }
+        scan.stats.traced += traced;
       }
     }
-    im.cast_packet(packet, context, rays, scan.stats);
 
     // each return becomes a point, in firing order, unless a fault or the range window takes it
     for (int j = 0; j < chunk; ++j) {
@@ -648,7 +609,6 @@ LidarScan Lidar::sweep(core::TimeUs sweep_start, const PoseHistory& vehicle_pose
       }
     }
   }
-  return scan;
 }
 
 }  // namespace conesim::sensors

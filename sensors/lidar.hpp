@@ -1,5 +1,5 @@
 #pragma once
-// The ray-cast LiDAR: an Embree scene of the ground and every cone, swept column by column
+// The ray-cast LiDAR: the ground plane and every cone's Embree mesh, swept column by column
 // from the vehicle pose at each column's firing time (ARCHITECTURE decision 4).
 //
 // Per sweep the harness calls, after the sweep has ended:
@@ -7,6 +7,10 @@
 //   Lidar lidar(config, track);                   // once per run
 //   lidar.set_cone_present(id, false);            // when the referee knocks a cone over
 //   LidarScan scan = lidar.sweep(start, poses, rng);  // needs poses over [start, sweep_end]
+// or, a part at a time as the poses arrive (the same points):
+//   LidarNoise noise(rng);
+//   lidar.sweep_columns(start, 0, 256, poses, noise, scan);  // poses up to column 255's time
+//   lidar.sweep_columns(start, 256, lidar.config().columns, poses, noise, scan);
 
 #include <cstdint>
 #include <memory>
@@ -31,7 +35,7 @@ struct LidarSweepStats {
   int64_t dropped = 0;
   /// Hits whose noisy range fell outside [min_range_m, max_range_m].
   int64_t out_of_range = 0;
-  /// Rays cast through the Embree scene because they pass near a standing cone; the others
+  /// Rays cast through Embree (the meshes of the standing cones they pass near); the others
   /// can only meet the ground, which is intersected directly.
   int64_t traced = 0;
 };
@@ -43,15 +47,24 @@ struct LidarScan {
   LidarSweepStats stats;
 };
 
-/// A spinning LiDAR over a track. Holds the Embree scene (the state: which cones stand): the
-/// ground and one instance per cone of its class's mesh, so that knocking a cone over rebuilds
-/// only the top level. A ray whose track on the ground passes clear of every standing cone's
-/// footprint meets the ground plane analytically; only the others are cast through Embree. The
-/// configuration never changes. sweep() may run on several threads at once, but not at
-/// the same time as set_cone_present().
+/// The noise of a sweep cast in parts (Lidar::sweep_columns): the generator and the normal
+/// sampler with the samples it holds, carried from one part to the next so that the parts draw
+/// the same numbers as one sweep() does. Starts a sweep's noise; holds the generator by
+/// reference.
+struct LidarNoise {
+  explicit LidarNoise(core::Rng& generator) : rng(generator), normal(generator) {}
+  core::Rng& rng;
+  core::ZigguratNormals normal;
+};
+
+/// A spinning LiDAR over a track. Holds one Embree mesh per cone class and every cone's class
+/// and place (the state: which cones stand). Every ray meets the ground plane analytically; a
+/// ray whose track on the ground enters a standing cone's footprint below its top is also cast
+/// through that cone's mesh, shifted to the cone's place. The configuration never changes.
+/// sweep() may run on several threads at once, but not at the same time as set_cone_present().
 class Lidar {
  public:
-  /// Builds the scene: a ground quad covering the track and every cone at its true size.
+  /// Builds the scene: a ground rectangle covering the track and every cone at its true size.
   /// Throws std::invalid_argument for a configuration that fails validate() and
   /// std::runtime_error when Embree cannot start.
   Lidar(const LidarConfig& config, const tracks::Track& track);
@@ -81,6 +94,17 @@ class Lidar {
   /// time. Points are in the sensor frame of their own column (motion distortion included),
   /// in firing order. Throws std::invalid_argument when the poses do not cover the sweep.
   LidarScan sweep(core::TimeUs sweep_start, const PoseHistory& vehicle_poses, core::Rng& rng) const;
+
+  /// Columns cast together: a sweep cast in parts that start on multiples of it, in order,
+  /// gives exactly the points of sweep().
+  int column_block() const;
+  /// Casts the columns [column_begin, column_end) of the sweep starting at sweep_start and
+  /// appends their points to scan, so that the harness can cast a sweep while its poses arrive.
+  /// Column 0 sets the scan's stamp and start pose, the last column its end pose. The poses
+  /// must cover the columns' firing times (else std::invalid_argument); noise starts with the
+  /// sweep and goes on through its parts.
+  void sweep_columns(core::TimeUs sweep_start, int column_begin, int column_end,
+                     const PoseHistory& vehicle_poses, LidarNoise& noise, LidarScan& scan) const;
 
  private:
   struct Impl;

@@ -83,13 +83,22 @@ std::vector<int> hungarian_assign(const Eigen::MatrixXd& cost, double cutoff) {
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < m; ++j)
       if (allowed(cost(i, j), cutoff)) parent[find_root(parent, i)] = find_root(parent, n + j);
-  std::vector<std::vector<int>> group_rows(n + m), group_cols(n + m);
-  for (int i = 0; i < n; ++i) group_rows[find_root(parent, i)].push_back(i);
-  for (int j = 0; j < m; ++j) group_cols[find_root(parent, n + j)].push_back(j);
+  // each group's rows and columns in increasing order, packed by group (no allocation per
+  // group: most rows and columns of a frame stand alone)
+  std::vector<int> root(n + m), first(n + m + 1, 0), members(n + m);
+  for (int k = 0; k < n + m; ++k) ++first[(root[k] = find_root(parent, k)) + 1];
+  for (int g = 0; g < n + m; ++g) first[g + 1] += first[g];
+  std::vector<int> next = first;
+  for (int k = 0; k < n + m; ++k) members[next[root[k]]++] = k;
+  std::vector<int> rows, cols;
 
   for (int g = 0; g < n + m; ++g) {
-    const auto& rows = group_rows[g];
-    const auto& cols = group_cols[g];
+    // a group of one is a row or a column without an allowed pair
+    if (first[g + 1] - first[g] < 2) continue;
+    rows.clear();
+    cols.clear();
+    for (int k = first[g]; k < first[g + 1]; ++k)
+      (members[k] < n ? rows : cols).push_back(members[k] < n ? members[k] : members[k] - n);
     if (rows.empty() || cols.empty()) continue;
     // forbidden pairs cost more than any set of allowed ones, so the optimum pairs as many
     // rows as it can within the cut-off first and minimises the cost second

@@ -140,14 +140,12 @@ DeliveredDetections PerceptionRunner::on_lidar(const sensors::LidarScan& scan,
   const core::ConeObservations raw = detections.observations();
   lidar_score_->add_frame(raw, truth);
   // and against the cones that returned enough points to be found at all
-  std::map<int, int> returns;
+  std::vector<int> returns(static_cast<size_t>(track_.next_id()), 0);
   for (int id : scan.labels.cone_id)
-    if (id >= 0) ++returns[id];
+    if (id >= 0) ++returns[static_cast<size_t>(id)];
   std::vector<TrueConeInView> returned;
-  for (const TrueConeInView& c : truth) {
-    const auto it = returns.find(c.id);
-    if (it != returns.end() && it->second >= kMinReturns) returned.push_back(c);
-  }
+  for (const TrueConeInView& c : truth)
+    if (returns[static_cast<size_t>(c.id)] >= kMinReturns) returned.push_back(c);
   lidar_returned_score_->add_frame(raw, returned);
 
   // fused: colours from the latest stereo pair, moved into this sweep's frame by the odometry

@@ -20,6 +20,17 @@ namespace {
 // independent noise streams per sensor, derived from the scenario seed
 constexpr uint64_t kConeSensorStream = 101;
 constexpr uint64_t kLidarStream = 102;
+// a LiDAR sweep goes to the worker in parts of this many column blocks (128 columns, 7 ms of
+// a 10 Hz sweep of 1800 columns), each as soon as the poses reach its last column
+constexpr int kBlocksPerPart = 4;
+// the spacing of the poses handed to the worker: the physics step
+constexpr TimeUs kPoseStepUs = 1000;
+
+using clock = std::chrono::steady_clock;
+
+double ms_between(clock::time_point from, clock::time_point to) {
+  return std::chrono::duration<double, std::milli>(to - from).count();
+}
 
 std::string frame_name(int index, const char* ext) {
   char name[32];
@@ -99,6 +110,30 @@ void draw_boxes(const slam::frontend::StereoDetections& detections, core::RgbIma
 
 }  // namespace
 
+// A LiDAR sweep being cast on the worker a part at a time: the worker's alone while parts of
+// it are queued.
+struct SensorRig::SweepInProgress {
+  sensors::LidarScan scan;
+  // the noise, started at the sweep's first column, and the generator as it was then (a cone
+  // knocked over during the sweep makes it start again)
+  std::optional<sensors::LidarNoise> noise;
+  core::Rng rng_at_start;
+  double cast_ms = 0.0;
+
+  // casts the columns [begin, end) (on the worker)
+  void cast(const sensors::Lidar& lidar, core::Rng& rng, TimeUs start, int begin, int end,
+            const sensors::PoseHistory& poses) {
+    const auto t0 = clock::now();
+    if (begin == 0) {
+      rng_at_start = rng;
+      noise.emplace(rng);
+    }
+    if (!noise) throw std::logic_error("lidar sweep: a part was cast before the sweep's start");
+    lidar.sweep_columns(start, begin, end, poses, *noise, scan);
+    cast_ms += ms_between(t0, clock::now());
+  }
+};
+
 SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const VehicleSim& car,
                      const DumpOptions& dump, const fs::path& run_dir)
     : track_(track),
@@ -130,6 +165,8 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
     poses_ = sensors::PoseHistory(2 * config->sweep_period_us());
     poses_.push(0, car.vehicle_pose3());
     lidar_latency_us_ = core::from_seconds(s.sensors.lidar_latency_s);
+    casting_ = std::make_shared<SweepInProgress>();
+    worker_ = std::make_unique<WorkerThread>();
   }
 
   // the stereo camera
@@ -156,9 +193,8 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
   }
 }
 
-SensorRig::~SensorRig() {
-  if (pending_scan_.valid()) pending_scan_.wait();
-}
+// the worker runs what is queued before it stops, and stops before the members its jobs use
+SensorRig::~SensorRig() = default;
 
 void SensorRig::finish() {
   if (pending_scan_.valid()) collect_sweep();
@@ -168,10 +204,13 @@ void SensorRig::sync_knocked_cones(const Referee& referee) {
   // a knocked cone leaves the LiDAR scene (the camera and cone sensor ask the referee)
   const auto& hit = referee.result().cones_hit;
   if (knocked_seen_ == hit.size()) return;
-  // the scene must not change under a sweep in flight
+  // the scene must not change under a sweep in flight: the worker finishes what it has, the
+  // sweep that has ended is collected, and the one being cast starts again without the cone
+  if (worker_) worker_->wait_idle();
   if (pending_scan_.valid()) collect_sweep();
   for (; knocked_seen_ < hit.size(); ++knocked_seen_)
     if (lidar_) lidar_->set_cone_present(hit[knocked_seen_], false);
+  if (lidar_) restart_sweep();
 }
 
 void SensorRig::step(TimeUs t, const VehicleSim& car, const Referee& referee) {
@@ -184,52 +223,100 @@ void SensorRig::step(TimeUs t, const VehicleSim& car, const Referee& referee) {
     if (pending_scan_.valid() && perception_ && perception_->uses_lidar() &&
         t >= pending_delivery_us_)
       collect_sweep();
-    if (t > lidar_->sweep_end(sweep_start_)) start_sweep();
+    if (t > lidar_->sweep_end(sweep_start_))
+      end_sweep();
+    else
+      cast_columns(t);
   }
   if (camera_ && t % camera_period_us_ == 0) render_camera(t, car, referee);
   if (cone_sensor_ && t % cone_period_us_ == 0) sense_cones(t, car, referee);
 }
 
-void SensorRig::start_sweep() {
-  // one sweep at a time: the previous one finishes (and uses the generator) first
-  if (pending_scan_.valid()) collect_sweep();
-  // the thread gets its own copy of the poses the sweep spans
+sensors::PoseHistory SensorRig::pose_window(TimeUs from, TimeUs to) const {
+  // the poses of the physics steps around [from, to] (the history changes while the worker
+  // casts, so it gets a copy)
   sensors::PoseHistory window(2 * lidar_->config().sweep_period_us());
+  TimeUs t = sweep_start_ + (from - sweep_start_) / kPoseStepUs * kPoseStepUs;
+  for (;; t += kPoseStepUs) {
+    window.push(t, poses_.at(std::min(t, poses_.newest())));
+    if (t >= to) break;
+  }
+  return window;
+}
+
+void SensorRig::cast_columns(TimeUs t) {
+  // the next parts whose last column has fired; the sweep's last part goes with its end
+  const int columns = lidar_->config().columns;
+  const int part = kBlocksPerPart * lidar_->column_block();
+  for (int end = columns_posted_ + part; end < columns; end += part) {
+    if (lidar_->column_time(sweep_start_, end - 1) > t) return;
+    const int begin = columns_posted_;
+    const TimeUs start = sweep_start_;
+    posted_parts_.push_back(
+        worker_->post([this, sweep = casting_, start, begin, end,
+                       window = pose_window(lidar_->column_time(start, begin),
+                                            lidar_->column_time(start, end - 1))] {
+          sweep->cast(*lidar_, lidar_rng_, start, begin, end, window);
+        }));
+    columns_posted_ = end;
+  }
+}
+
+void SensorRig::end_sweep() {
+  // one sweep at a time: the previous one is collected first
+  if (pending_scan_.valid()) collect_sweep();
   const TimeUs start = sweep_start_;
   const TimeUs end = lidar_->sweep_end(start);
-  for (TimeUs t = start; t <= end + 1000; t += 1000) window.push(t, poses_.at(std::min(t, poses_.newest())));
-  sweep_start_ += lidar_->config().sweep_period_us();
+  const int begin = columns_posted_;
+  const int columns = lidar_->config().columns;
   pending_delivery_us_ = end + lidar_latency_us_;
-  // the cone detector runs on the same thread, with the motion the autonomy estimates now
+  pending_parts_ = std::move(posted_parts_);
+  posted_parts_.clear();
+  // the last part, then the cone detector on the same thread, with the motion the autonomy
+  // estimates now
   const slam::frontend::LidarConeDetector* detector =
       perception_ ? perception_->lidar_detector() : nullptr;
   const slam::frontend::SweepMotion motion =
       perception_ ? perception_->motion() : slam::frontend::SweepMotion{};
-  pending_scan_ = std::async(std::launch::async, [this, start, detector, motion,
-                                                  window = std::move(window)] {
-    using clock = std::chrono::steady_clock;
-    const auto t0 = clock::now();
-    SweepResult r{lidar_->sweep(start, window, lidar_rng_), std::nullopt};
-    const auto t1 = clock::now();
-    pending_ms_ = std::chrono::duration<double, std::milli>(t1 - t0).count();
+  pending_scan_ = worker_->post([this, sweep = casting_, start, begin, columns, detector, motion,
+                                 window = pose_window(lidar_->column_time(start, begin), end)] {
+    sweep->cast(*lidar_, lidar_rng_, start, begin, columns, window);
+    SweepResult r{std::move(sweep->scan), std::nullopt, sweep->cast_ms, 0.0};
     if (detector) {
+      const auto t0 = clock::now();
       r.detections = detector->detect(r.scan.cloud, motion);
-      pending_detect_ms_ = std::chrono::duration<double, std::milli>(clock::now() - t1).count();
+      r.detect_ms = ms_between(t0, clock::now());
     }
     return r;
   });
+
+  // the next sweep
+  sweep_start_ += lidar_->config().sweep_period_us();
+  casting_ = std::make_shared<SweepInProgress>();
+  columns_posted_ = 0;
+}
+
+void SensorRig::restart_sweep() {
+  // the worker is idle: the sweep being cast is dropped and its noise drawn again
+  for (std::future<void>& part : posted_parts_) part.get();
+  posted_parts_.clear();
+  if (columns_posted_ > 0) lidar_rng_ = casting_->rng_at_start;
+  casting_ = std::make_shared<SweepInProgress>();
+  columns_posted_ = 0;
 }
 
 void SensorRig::collect_sweep() {
+  for (std::future<void>& part : pending_parts_) part.get();
+  pending_parts_.clear();
   const SweepResult result = pending_scan_.get();
   const sensors::LidarScan& scan = result.scan;
-  stats_.lidar_ms_total += pending_ms_;
+  stats_.lidar_ms_total += result.cast_ms;
   const int index = stats_.lidar_scans++;
   stats_.lidar_points += static_cast<int64_t>(scan.cloud.points.size());
 
   // the sweep's cones go to SLAM once the perception latency has passed
   if (result.detections && referee_) {
-    stats_.lidar_detect_ms_total += pending_detect_ms_;
+    stats_.lidar_detect_ms_total += result.detect_ms;
     const Referee& referee = *referee_;
     DeliveredDetections d = perception_->on_lidar(
         scan, *result.detections, poses_.at(result.detections->stamp).planar(),

@@ -4,12 +4,13 @@
 // step() after every physics step and takes the delivered cone detections.
 
 #include <deque>
-#include <future>
 #include <filesystem>
+#include <future>
 #include <memory>
 #include <optional>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "core/measurements.hpp"
 #include "core/rng.hpp"
@@ -21,6 +22,7 @@
 #include "sim/referee.hpp"
 #include "sim/scenario.hpp"
 #include "sim/vehicle_sim.hpp"
+#include "sim/worker_thread.hpp"
 
 namespace conesim::sim {
 
@@ -79,7 +81,11 @@ class SensorRig {
   void finish();
 
  private:
-  void start_sweep();
+  struct SweepInProgress;
+  void cast_columns(core::TimeUs t);
+  void end_sweep();
+  void restart_sweep();
+  sensors::PoseHistory pose_window(core::TimeUs from, core::TimeUs to) const;
   void collect_sweep();
   void dump_sweep(int index, const sensors::LidarScan& scan,
                   const std::optional<slam::frontend::LidarDetections>& detections);
@@ -103,18 +109,24 @@ class SensorRig {
   sensors::PoseHistory poses_;
   core::Rng lidar_rng_;
   core::TimeUs sweep_start_ = 0;
-  // the sweep computing on another thread while the physics goes on (one at a time, in order,
-  // so the noise sequence and the results are the same as sequential sweeps)
+  // the sweep being cast: the worker casts its columns a part at a time as their poses arrive,
+  // in order, so that the noise sequence and the points are those of one sweep cast at its end
+  std::shared_ptr<SweepInProgress> casting_;
+  // columns of it handed to the worker, and the futures of those parts (errors come through)
+  int columns_posted_ = 0;
+  std::vector<std::future<void>> posted_parts_;
+  // the sweep that has ended, finishing and detecting on the worker (one at a time)
   struct SweepResult {
     sensors::LidarScan scan;
     std::optional<slam::frontend::LidarDetections> detections;
+    double cast_ms = 0.0;
+    double detect_ms = 0.0;
   };
   std::future<SweepResult> pending_scan_;
+  std::vector<std::future<void>> pending_parts_;
   // when the sweep in flight reaches SLAM (its end plus the perception latency)
   core::TimeUs pending_delivery_us_ = 0;
   core::TimeUs lidar_latency_us_ = 0;
-  double pending_ms_ = 0.0;
-  double pending_detect_ms_ = 0.0;
 
   std::unique_ptr<sensors::StereoCamera> camera_;
   core::TimeUs camera_period_us_ = 0;
@@ -125,6 +137,8 @@ class SensorRig {
 
   size_t knocked_seen_ = 0;
   SensorRigStats stats_;
+  // the LiDAR's thread; last member: its jobs use the members above, so it stops before them
+  std::unique_ptr<WorkerThread> worker_;
 };
 
 }  // namespace conesim::sim

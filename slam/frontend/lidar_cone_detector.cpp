@@ -52,6 +52,34 @@ struct GroundPlane {
   }
 };
 
+// Which of many points lie at heights within [lo, hi] of a plane, and at what height: the same
+// heights as GroundPlane::height with its square root taken once, and the points far outside
+// turned away by a multiplication (the exact quotient decides near the limits).
+class HeightBand {
+ public:
+  HeightBand(const GroundPlane& plane, double lo, double hi)
+      : plane_(plane),
+        length_(std::sqrt(plane.a * plane.a + plane.b * plane.b + 1.0)),
+        inverse_(1.0 / length_),
+        lo_(lo),
+        hi_(hi) {}
+
+  // true when the point's height is within the band; its height in h then
+  bool contains(const Vector3d& p, double& h) const {
+    // the product is within 1e-15 relative of the quotient: a margin of 1e-9 m is safe
+    constexpr double kMarginM = 1e-9;
+    const double rise = p.z() - (plane_.a * p.x() + plane_.b * p.y() + plane_.c);
+    const double approx = rise * inverse_;
+    if (approx < lo_ - kMarginM || approx > hi_ + kMarginM) return false;
+    h = rise / length_;
+    return h >= lo_ && h <= hi_;
+  }
+
+ private:
+  GroundPlane plane_;
+  double length_, inverse_, lo_, hi_;
+};
+
 // the pose of the vehicle at the sweep end seen from the vehicle at dt earlier, for constant
 // speed and yaw rate (a circular arc; a straight line for a negligible yaw rate)
 core::Pose2 arc_motion(const SweepMotion& motion, double dt_s) {
@@ -62,13 +90,22 @@ core::Pose2 arc_motion(const SweepMotion& motion, double dt_s) {
   return {radius * std::sin(dyaw), radius * (1.0 - std::cos(dyaw)), dyaw};
 }
 
+// a point's horizontal range from the sensor, as std::hypot of its two floats gives it (glibc
+// computes it in double and rounds it to float), inline
+double horizontal_range(const core::LidarPoint& p) {
+  return static_cast<float>(
+      std::sqrt(static_cast<double>(p.x) * p.x + static_cast<double>(p.y) * p.y));
+}
+
 // least-squares plane z = a x + b y + c through the points within `tolerance` of `plane`
 bool fit_plane(const std::vector<Vector3d>& points, double tolerance, GroundPlane& plane) {
   Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
   Vector3d atb = Vector3d::Zero();
   int used = 0;
+  const HeightBand band(plane, -tolerance, tolerance);
+  double h = 0.0;
   for (const Vector3d& p : points) {
-    if (std::abs(plane.height(p)) > tolerance) continue;
+    if (!band.contains(p, h)) continue;
     const Vector3d row(p.x(), p.y(), 1.0);
     ata += row * row.transpose();
     atb += row * p.z();
@@ -505,14 +542,16 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
   // is arc_motion(T - tau) ahead of it, so the point moves by that motion's inverse (columns
   // share tau, so the motion is computed once per column)
   std::vector<Vector3d> vehicle(static_cast<size_t>(n));
-  std::vector<double> range(static_cast<size_t>(n), -1.0);  // < 0: out of range, skipped
+  // horizontal range from the sensor; < 0: out of range, skipped
+  std::vector<double> horizontal_m(static_cast<size_t>(n), -1.0);
   float last_tau = std::numeric_limits<float>::quiet_NaN();
   core::Pose2 back;
+  double back_cos = 1.0, back_sin = 0.0;
   for (int i = 0; i < n; ++i) {
     const core::LidarPoint& p = cloud.points[i];
-    const double horizontal = std::hypot(p.x, p.y);
+    const double horizontal = horizontal_range(p);
     if (horizontal < c.min_range_m || horizontal > c.max_range_m) continue;
-    range[i] = std::sqrt(horizontal * horizontal + double(p.z) * p.z);
+    horizontal_m[i] = horizontal;
     const Vector3d v = sensor_in_vehicle_.transform(Vector3d(p.x, p.y, p.z));
     if (!c.deskew) {
       vehicle[i] = v;
@@ -521,9 +560,12 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
     if (p.time_offset_s != last_tau) {
       last_tau = p.time_offset_s;
       back = arc_motion(motion, c.sweep_period_s - p.time_offset_s);
+      back_cos = std::cos(back.yaw);
+      back_sin = std::sin(back.yaw);
     }
-    const core::Vec2 xy = back.inverse_transform(v.head<2>());
-    vehicle[i] = Vector3d(xy.x(), xy.y(), v.z());
+    // back.inverse_transform(v.head<2>()), with the column's cosine and sine
+    const double dx = v.x() - back.x, dy = v.y() - back.y;
+    vehicle[i] = Vector3d(back_cos * dx + back_sin * dy, -back_sin * dx + back_cos * dy, v.z());
   }
 
   // ground: candidates near z = 0 of the vehicle frame, then two refits on the inliers. Three
@@ -531,7 +573,7 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
   std::vector<Vector3d> candidates;
   candidates.reserve(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i)
-    if (range[i] >= 0.0 && std::abs(vehicle[i].z()) < c.ground_candidate_band_m)
+    if (horizontal_m[i] >= 0.0 && std::abs(vehicle[i].z()) < c.ground_candidate_band_m)
       candidates.push_back(vehicle[i]);
   constexpr size_t kGroundFitPoints = 4000;
   if (candidates.size() > 2 * kGroundFitPoints) {
@@ -553,11 +595,16 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
   const Vector3d sensor = sensor_in_vehicle_.position;
   const Vector2d sensor_xy = (sensor - ground.height(sensor) * up).head<2>();
   std::vector<RaisedPoint> raised;
+  const HeightBand raised_band(ground, c.min_point_height_m, c.max_point_height_m);
   for (int i = 0; i < n; ++i) {
-    if (range[i] < 0.0) continue;
-    const double h = ground.height(vehicle[i]);
-    if (h < c.min_point_height_m || h > c.max_point_height_m) continue;
-    raised.push_back({i, (vehicle[i] - h * up).head<2>(), h, range[i],
+    if (horizontal_m[i] < 0.0) continue;
+    double h = 0.0;
+    if (!raised_band.contains(vehicle[i], h)) continue;
+    // the range from the sensor, only for the points kept
+    const double horizontal = horizontal_m[i];
+    const double z = cloud.points[i].z;
+    const double range = std::sqrt(horizontal * horizontal + z * z);
+    raised.push_back({i, (vehicle[i] - h * up).head<2>(), h, range,
                       static_cast<double>(cloud.points[i].intensity), cloud.points[i].ring});
   }
   out.non_ground_points = static_cast<int>(raised.size());

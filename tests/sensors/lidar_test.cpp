@@ -68,6 +68,22 @@ Eigen::Vector3d in_track(const Lidar& lidar, const PoseHistory& poses,
   return lidar.sensor_pose(poses.at(t)).transform(Eigen::Vector3d(p.x, p.y, p.z));
 }
 
+// two scans with the same points, bit for bit, in the same order and with the same labels
+::testing::AssertionResult same_points(const LidarScan& a, const LidarScan& b) {
+  if (a.cloud.points.size() != b.cloud.points.size())
+    return ::testing::AssertionFailure()
+           << a.cloud.points.size() << " points against " << b.cloud.points.size();
+  for (size_t i = 0; i < a.cloud.points.size(); ++i) {
+    const core::LidarPoint &p = a.cloud.points[i], &q = b.cloud.points[i];
+    if (!(p.x == q.x && p.y == q.y && p.z == q.z && p.intensity == q.intensity &&
+          p.ring == q.ring && p.time_offset_s == q.time_offset_s))
+      return ::testing::AssertionFailure() << "point " << i << " differs";
+  }
+  if (a.labels.cone_id != b.labels.cone_id)
+    return ::testing::AssertionFailure() << "the labels differ";
+  return ::testing::AssertionSuccess();
+}
+
 double range_of(const core::LidarPoint& p) {
   return std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z);
 }
@@ -422,18 +438,47 @@ TEST(Lidar, SameSeedSameScan) {
     return lidar.sweep(10'000, poses, rng);
   };
   const LidarScan a = scan_with(42), b = scan_with(42), c = scan_with(43);
-  ASSERT_EQ(a.cloud.points.size(), b.cloud.points.size());
-  for (size_t i = 0; i < a.cloud.points.size(); ++i) {
-    const core::LidarPoint &p = a.cloud.points[i], &q = b.cloud.points[i];
-    ASSERT_TRUE(p.x == q.x && p.y == q.y && p.z == q.z && p.intensity == q.intensity &&
-                p.ring == q.ring && p.time_offset_s == q.time_offset_s)
-        << i;
-  }
-  EXPECT_EQ(a.labels.cone_id, b.labels.cone_id);
+  EXPECT_TRUE(same_points(a, b));
   bool differs = a.cloud.points.size() != c.cloud.points.size();
   for (size_t i = 0; !differs && i < a.cloud.points.size(); ++i)
     differs = a.cloud.points[i].x != c.cloud.points[i].x;
   EXPECT_TRUE(differs);
+}
+
+// The harness casts a sweep in parts as the poses arrive: with noise and dropout on and the car
+// turning, parts of any number of column blocks give exactly the points of one sweep, each
+// part seeing only the poses up to its last column.
+TEST(Lidar, ASweepCastInPartsGivesTheSamePoints) {
+  LidarConfig config;
+  config.dropout_probability = 0.05;
+  const Lidar lidar(config, ring_of_cones());
+  const PoseHistory poses = drive(planar_pose(0.0, 0.0, 0.3), 8.0, 0, 200'000);
+  const TimeUs start = 10'000;
+  core::Rng whole_rng(7);
+  const LidarScan whole = lidar.sweep(start, poses, whole_rng);
+
+  core::Rng parts_rng(7);
+  LidarNoise noise(parts_rng);
+  LidarScan parts;
+  const int block = lidar.column_block();
+  int begin = 0;
+  for (int blocks = 1; begin < config.columns; blocks = blocks % 5 + 1) {
+    const int end = std::min(config.columns, begin + blocks * block);
+    // the poses up to the part's last column only
+    PoseHistory so_far(10 * core::kUsPerSecond);
+    const TimeUs last = lidar.column_time(start, end - 1);
+    for (TimeUs t = 0; t < last + 1000; t += 1000) so_far.push(t, poses.at(t));
+    lidar.sweep_columns(start, begin, end, so_far, noise, parts);
+    begin = end;
+  }
+
+  EXPECT_TRUE(same_points(whole, parts));
+  EXPECT_EQ(whole.cloud.stamp, parts.cloud.stamp);
+  EXPECT_EQ(whole.labels.sensor_pose_end.position, parts.labels.sensor_pose_end.position);
+  EXPECT_EQ(whole.stats.hits, parts.stats.hits);
+  EXPECT_EQ(whole.stats.dropped, parts.stats.dropped);
+  // the generators went through the same numbers
+  EXPECT_EQ(whole_rng(), parts_rng());
 }
 
 // A pitched, rolled car (the rays of a column no longer share one heading seen from above):

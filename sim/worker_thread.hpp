@@ -1,0 +1,52 @@
+#pragma once
+// A thread of its own that runs jobs one at a time, first posted first run: the LiDAR sweeps
+// are cast and their cones detected on it while the physics goes on. Because the jobs run in
+// the order they were posted, a job may use what the earlier ones left (the noise generator,
+// a sweep cast in parts) without any more synchronisation.
+
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <future>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <type_traits>
+
+namespace conesim::sim {
+
+/// Runs posted jobs on one thread, in the order they were posted.
+class WorkerThread {
+ public:
+  /// Starts the thread.
+  WorkerThread();
+  /// Runs the jobs still queued, then stops the thread.
+  ~WorkerThread();
+  WorkerThread(const WorkerThread&) = delete;
+  WorkerThread& operator=(const WorkerThread&) = delete;
+
+  /// Queues a job; its result (or the exception it threw) arrives through the future.
+  template <typename Job>
+  std::future<std::invoke_result_t<Job&>> post(Job job) {
+    using Result = std::invoke_result_t<Job&>;
+    auto task = std::make_shared<std::packaged_task<Result()>>(std::move(job));
+    std::future<Result> result = task->get_future();
+    enqueue([task] { (*task)(); });
+    return result;
+  }
+
+  /// Waits until every job posted so far has run.
+  void wait_idle();
+
+ private:
+  void enqueue(std::function<void()> job);
+  void run();
+
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<std::function<void()>> jobs_;
+  bool stopping_ = false;
+  std::thread thread_;
+};
+
+}  // namespace conesim::sim

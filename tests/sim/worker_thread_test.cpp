@@ -1,0 +1,50 @@
+// The LiDAR's worker thread: jobs run one at a time in the order posted, results and errors come
+// back through the futures.
+
+#include "sim/worker_thread.hpp"
+
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+namespace conesim::sim {
+namespace {
+
+TEST(WorkerThread, RunsJobsInTheOrderPosted) {
+  std::vector<int> order;  // touched by the worker only until wait_idle returns
+  WorkerThread worker;
+  for (int i = 0; i < 100; ++i)
+    worker.post([&order, i] {
+      // an early job that takes longer must still finish before the next one starts
+      if (i % 10 == 0) std::this_thread::sleep_for(std::chrono::microseconds(200));
+      order.push_back(i);
+    });
+  worker.wait_idle();
+  ASSERT_EQ(order.size(), 100u);
+  for (int i = 0; i < 100; ++i) EXPECT_EQ(order[i], i);
+}
+
+TEST(WorkerThread, ResultsAndErrorsComeThroughTheFuture) {
+  WorkerThread worker;
+  std::future<int> answer = worker.post([] { return 42; });
+  std::future<void> failed = worker.post([] { throw std::runtime_error("no poses"); });
+  std::future<int> after = worker.post([] { return 7; });
+  EXPECT_EQ(answer.get(), 42);
+  EXPECT_THROW(failed.get(), std::runtime_error);
+  // a failed job does not stop the ones after it
+  EXPECT_EQ(after.get(), 7);
+}
+
+TEST(WorkerThread, RunsWhatIsQueuedBeforeStopping) {
+  int done = 0;
+  {
+    WorkerThread worker;
+    for (int i = 0; i < 20; ++i) worker.post([&done] { ++done; });
+  }
+  EXPECT_EQ(done, 20);
+}
+
+}  // namespace
+}  // namespace conesim::sim
