@@ -66,8 +66,9 @@ constexpr double kBrakingZoneMarginM = 10.0;
 constexpr double kBrakingZoneDecelShare = 0.8;
 // acceleration: the course path reaches this far ahead of the car, metres
 constexpr double kCourseAheadM = 60.0;
-// skidpad: the rear axle stops this far past the timing line (the stop line is 21 m out)
-constexpr double kSkidpadStopAfterM = 12.0;
+// skidpad: the rear axle stops this far past the timing line (the stop line is 21 m out); the
+// rear must clear the circles (10.8 m) even when the car holds up to kSkidpadStopToleranceM short
+constexpr double kSkidpadStopAfterM = 16.0;
 // skidpad: close enough to the stop point to hold the car once slow, metres
 constexpr double kSkidpadStopToleranceM = 4.0;
 // skidpad laps: two right, two left

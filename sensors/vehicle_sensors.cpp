@@ -4,6 +4,7 @@
 #include <numbers>
 #include <sstream>
 
+#include "core/time.hpp"
 #include "core/validate.hpp"
 
 namespace conesim::sensors {
@@ -36,10 +37,10 @@ core::TimeUs SensorTiming::latency_us() const {
 
 std::string SensorTiming::validate(const std::string& prefix) const {
   if (auto e = check(prefix + ".rate_hz", rate_hz, 0.1, 1000.0); !e.empty()) return e;
-  // the period must be a whole number of physics steps (1 ms) so the schedule never drifts
-  const double period_ms = 1000.0 / rate_hz;
-  if (std::abs(period_ms - std::round(period_ms)) > 1e-9)
-    return prefix + ".rate_hz: expected a rate whose period is a whole number of milliseconds";
+  // the period must be a whole number of physics steps so the schedule never drifts
+  if (!core::whole_physics_steps(rate_hz))
+    return prefix + ".rate_hz: expected a rate whose period is a whole number of physics steps (" +
+           std::to_string(core::kPhysicsStepUs / 1000) + " ms)";
   return check(prefix + ".latency_s", latency_s, 0.0, 1.0);
 }
 

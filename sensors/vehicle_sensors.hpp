@@ -46,7 +46,7 @@ struct SensorTiming {
 /// A MEMS IMU of the class FS teams use (VectorNav VN-100 / Xsens MTi-30 datasheets): white
 /// noise from the noise densities at the sample rate, bias random walk, initial bias.
 struct ImuConfig {
-  SensorTiming timing{200.0, 0.002};
+  SensorTiming timing{250.0, 0.002};
   double gyro_noise_density_rps_rthz = 1.2e-4;   // 0.007 deg/s/sqrt(Hz)
   double gyro_bias_walk_rps_rts = 2.0e-5;        // rad/s per sqrt(s)
   double gyro_initial_bias_rps = 1.0e-3;         // sigma of the turn-on bias

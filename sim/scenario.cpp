@@ -465,12 +465,11 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   if (const std::string e = s.vehicle.validate(); !e.empty())
     throw InputError(fname, "vehicle", e);
   if (const std::string e = s.driver.validate(); !e.empty()) throw InputError(fname, "driver", e);
-  const double period_us = 1e6 / s.sensors.driver_rate_hz;
-  if (!(s.sensors.driver_rate_hz >= 1.0 && s.sensors.driver_rate_hz <= 1000.0) ||
-      std::abs(period_us - std::round(period_us)) > 1e-9 || std::fmod(std::round(period_us), 1000.0) != 0.0)
+  if (!(s.sensors.driver_rate_hz >= 1.0 && s.sensors.driver_rate_hz <= 500.0) ||
+      !core::whole_physics_steps(s.sensors.driver_rate_hz))
     throw InputError(fname, "sensors.driver_rate_hz",
-                     "expected a rate from 1 to 1000 Hz whose period is a whole number of "
-                     "milliseconds (e.g. 10, 20, 25, 50, 100)");
+                     "expected a rate from 1 to 500 Hz whose period is a whole number of "
+                     "physics steps of 2 ms (e.g. 10, 20, 25, 50, 100)");
   if (!(s.sensors.cone_range_m > 0.0 && s.sensors.cone_range_m <= 200.0))
     throw InputError(fname, "sensors.cone_range_m", "expected a range in (0, 200] m");
   if (!(s.sensors.cone_fov_deg > 0.0 && s.sensors.cone_fov_deg <= 360.0))
@@ -480,10 +479,10 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   if (const std::string e = s.sensors.camera.validate(); !e.empty())
     throw InputError(fname, "sensors.camera", e);
   {
-    const double period_ms = 1000.0 / s.sensors.camera_rate_hz;
-    if (!(s.sensors.camera_rate_hz > 0.0) || std::abs(period_ms - std::round(period_ms)) > 1e-9)
+    if (!core::whole_physics_steps(s.sensors.camera_rate_hz))
       throw InputError(fname, "sensors.camera.rate_hz",
-                       "expected a rate whose period is a whole number of milliseconds");
+                       "expected a rate whose period is a whole number of physics steps of 2 ms "
+                       "(e.g. 10, 20, 25, 50)");
   }
   if (s.pass.max_cones_hit < 0 || s.pass.max_off_course < 0 || s.pass.max_final_time_s < 0.0)
     throw InputError(fname, "pass", "expected limits >= 0");

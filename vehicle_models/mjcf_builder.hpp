@@ -3,6 +3,7 @@
 
 #include <string>
 
+#include "core/time.hpp"
 #include "vehicle_models/vehicle_params.hpp"
 
 namespace conesim::vehicle_models {
@@ -17,8 +18,9 @@ struct MjcfNames {
 
 /// Options of the generated world that are not car parameters.
 struct MjcfOptions {
-  /// Physics step, seconds (the measured settings hold for 0.5-2 ms).
-  double timestep_s = 0.001;
+  /// Physics step, seconds (the measured settings hold for 0.5-2 ms; the sim's schedules are
+  /// built on core::kPhysicsStepUs).
+  double timestep_s = core::to_seconds(core::kPhysicsStepUs);
   /// Offscreen buffer for the camera renderer, pixels.
   int offscreen_width_px = 1280;
   int offscreen_height_px = 960;

@@ -84,6 +84,13 @@ TEST_F(ScenarioFile, BadInputNamesFileLineAndKey) {
   EXPECT_NE(error_of("event: autocross\nsensors: {lidar: {latency_s: 0.2}}\n")
                 .find("sensors.lidar.latency_s"),
             std::string::npos);
+  // a 25 ms period is no whole number of 2 ms physics steps: the camera would fire at 20 Hz
+  EXPECT_NE(error_of("event: autocross\nsensors: {camera: {rate_hz: 40}}\n")
+                .find("sensors.camera.rate_hz: expected a rate whose period is a whole number of "
+                      "physics steps"),
+            std::string::npos);
+  EXPECT_NE(error_of("event: autocross\nsensors: {driver_rate_hz: 40}\n").find("driver_rate_hz"),
+            std::string::npos);
   // SLAM pass criteria: sane values, and only where SLAM runs
   const std::string slam = "event: autocross\nperception: cone_sensor\nslam: graph\n";
   EXPECT_NE(error_of(slam + "pass: {max_map_rmse_m: -1}\n").find("pass.max_map_rmse_m"),
