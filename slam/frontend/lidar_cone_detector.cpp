@@ -97,6 +97,29 @@ double horizontal_range(const core::LidarPoint& p) {
       std::sqrt(static_cast<double>(p.x) * p.x + static_cast<double>(p.y) * p.y));
 }
 
+// Which points lie within [lo, hi] of horizontal range, as horizontal_range gives it: the
+// squared range decides away from the limits (the float rounding is within 1e-7 relative, the
+// margin 1e-6), the square root only near them.
+class RangeWindow {
+ public:
+  RangeWindow(double lo, double hi)
+      : lo_(lo),
+        hi_(hi),
+        inner_lo_squared_(lo * (1.0 + kMargin) * lo * (1.0 + kMargin)),
+        inner_hi_squared_(hi * (1.0 - kMargin) * hi * (1.0 - kMargin)) {}
+
+  bool contains(const core::LidarPoint& p) const {
+    const double squared = static_cast<double>(p.x) * p.x + static_cast<double>(p.y) * p.y;
+    if (squared > inner_lo_squared_ && squared < inner_hi_squared_) return true;
+    const double horizontal = horizontal_range(p);
+    return !(horizontal < lo_ || horizontal > hi_);
+  }
+
+ private:
+  static constexpr double kMargin = 1e-6;
+  double lo_, hi_, inner_lo_squared_, inner_hi_squared_;
+};
+
 // least-squares plane z = a x + b y + c through the points within `tolerance` of `plane`
 bool fit_plane(const std::vector<Vector3d>& points, double tolerance, GroundPlane& plane) {
   Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
@@ -376,27 +399,42 @@ ConeClass classify_paint(const LidarDetectorConfig& config, const std::vector<Ra
   // can use), scaled below by the fewest usable points
   std::vector<double> mean_log_likelihood;
   size_t fewest_used = cluster.size();
+  // the usable points of a shape, with the band each may be on and its expected intensity per
+  // unit reflectivity; hypotheses of one shape (the small ones) share them
+  struct Seen {
+    double measured, scale, p_other;
+    bool stripe_here, stripe_other;
+  };
+  std::vector<Seen> seen;
+  const core::ConeBand* seen_shape = nullptr;
+  struct Expected {
+    double measured, here, other, p_other;
+  };
+  std::vector<Expected> used;
   for (const PaintHypothesis& h : hypotheses) {
-    const double taper =
-        std::atan2(h.shape.bands.front().radius_bottom_m - h.shape.bands.back().radius_top_m,
-                   h.shape.height_m - h.shape.plate_height_m);
-    // expected intensities of the usable points (gain 1), in their band and across the edge
-    struct Expected {
-      double measured, here, other, p_other;
-    };
-    std::vector<Expected> used;
-    for (const int i : cluster) {
-      const RaisedPoint& p = points[i];
-      if (p.height_m > h.shape.height_m + 0.02) continue;
-      const double radius = body_radius(h.shape, p.height_m);
-      const double u = (p.foot - centre).dot(across) / radius;
-      if (std::abs(u) > 0.85) continue;
-      const BandChance band = band_chance(h.shape, p.height_m, config.height_sigma_m);
-      const double falloff = 1.0 / (1.0 + std::pow(p.range_m / config.intensity_falloff_m, 2));
-      const double scale = 255.0 * std::sqrt(1.0 - u * u) * std::cos(taper) * falloff;
-      used.push_back({p.intensity, scale * (band.stripe_here ? h.stripe : h.body),
-                      scale * (band.stripe_other ? h.stripe : h.body), band.p_other});
+    if (h.shape.bands.data() != seen_shape) {
+      seen_shape = h.shape.bands.data();
+      seen.clear();
+      const double taper =
+          std::atan2(h.shape.bands.front().radius_bottom_m - h.shape.bands.back().radius_top_m,
+                     h.shape.height_m - h.shape.plate_height_m);
+      for (const int i : cluster) {
+        const RaisedPoint& p = points[i];
+        if (p.height_m > h.shape.height_m + 0.02) continue;
+        const double radius = body_radius(h.shape, p.height_m);
+        const double u = (p.foot - centre).dot(across) / radius;
+        if (std::abs(u) > 0.85) continue;
+        const BandChance band = band_chance(h.shape, p.height_m, config.height_sigma_m);
+        const double falloff = 1.0 / (1.0 + std::pow(p.range_m / config.intensity_falloff_m, 2));
+        const double scale = 255.0 * std::sqrt(1.0 - u * u) * std::cos(taper) * falloff;
+        seen.push_back({p.intensity, scale, band.p_other, band.stripe_here, band.stripe_other});
+      }
     }
+    // expected intensities of the usable points (gain 1), in their band and across the edge
+    used.clear();
+    for (const Seen& s : seen)
+      used.push_back({s.measured, s.scale * (s.stripe_here ? h.stripe : h.body),
+                      s.scale * (s.stripe_other ? h.stripe : h.body), s.p_other});
     if (static_cast<int>(used.size()) < config.colour_min_points) return ConeClass::kUnknown;
 
     // the gain by least squares on the points sure of their band, kept near 1; then the
@@ -415,9 +453,12 @@ ConeClass classify_paint(const LidarDetectorConfig& config, const std::vector<Ra
       return std::exp(-0.5 * r * r) / sigma;
     };
     double log_likelihood = 0.0;
-    for (const Expected& e : used)
-      log_likelihood += std::log((1.0 - e.p_other) * density(e.measured, e.here) +
-                                 e.p_other * density(e.measured, e.other) + 1e-300);
+    // (a point sure of its band adds nothing across the edge: the density there is finite)
+    for (const Expected& e : used) {
+      const double across_edge = e.p_other > 0.0 ? e.p_other * density(e.measured, e.other) : 0.0;
+      log_likelihood +=
+          std::log((1.0 - e.p_other) * density(e.measured, e.here) + across_edge + 1e-300);
+    }
     mean_log_likelihood.push_back(log_likelihood / static_cast<double>(used.size()));
     fewest_used = std::min(fewest_used, used.size());
   }
@@ -542,16 +583,16 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
   // is arc_motion(T - tau) ahead of it, so the point moves by that motion's inverse (columns
   // share tau, so the motion is computed once per column)
   std::vector<Vector3d> vehicle(static_cast<size_t>(n));
-  // horizontal range from the sensor; < 0: out of range, skipped
-  std::vector<double> horizontal_m(static_cast<size_t>(n), -1.0);
+  // within the sensor's horizontal range window (the others are skipped)
+  std::vector<uint8_t> in_range(static_cast<size_t>(n), 0);
+  const RangeWindow window(c.min_range_m, c.max_range_m);
   float last_tau = std::numeric_limits<float>::quiet_NaN();
   core::Pose2 back;
   double back_cos = 1.0, back_sin = 0.0;
   for (int i = 0; i < n; ++i) {
     const core::LidarPoint& p = cloud.points[i];
-    const double horizontal = horizontal_range(p);
-    if (horizontal < c.min_range_m || horizontal > c.max_range_m) continue;
-    horizontal_m[i] = horizontal;
+    if (!window.contains(p)) continue;
+    in_range[i] = 1;
     const Vector3d v = sensor_in_vehicle_.transform(Vector3d(p.x, p.y, p.z));
     if (!c.deskew) {
       vehicle[i] = v;
@@ -573,7 +614,7 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
   std::vector<Vector3d> candidates;
   candidates.reserve(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i)
-    if (horizontal_m[i] >= 0.0 && std::abs(vehicle[i].z()) < c.ground_candidate_band_m)
+    if (in_range[i] && std::abs(vehicle[i].z()) < c.ground_candidate_band_m)
       candidates.push_back(vehicle[i]);
   constexpr size_t kGroundFitPoints = 4000;
   if (candidates.size() > 2 * kGroundFitPoints) {
@@ -597,11 +638,11 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
   std::vector<RaisedPoint> raised;
   const HeightBand raised_band(ground, c.min_point_height_m, c.max_point_height_m);
   for (int i = 0; i < n; ++i) {
-    if (horizontal_m[i] < 0.0) continue;
+    if (!in_range[i]) continue;
     double h = 0.0;
     if (!raised_band.contains(vehicle[i], h)) continue;
     // the range from the sensor, only for the points kept
-    const double horizontal = horizontal_m[i];
+    const double horizontal = horizontal_range(cloud.points[i]);
     const double z = cloud.points[i].z;
     const double range = std::sqrt(horizontal * horizontal + z * z);
     raised.push_back({i, (vehicle[i] - h * up).head<2>(), h, range,
