@@ -1,6 +1,7 @@
 #pragma once
 // The one sim clock: integer microseconds, so that schedules never drift.
 
+#include <cmath>
 #include <cstdint>
 #include <ctime>
 
@@ -20,8 +21,7 @@ inline constexpr TimeUs kPhysicsStepUs = 2000;
 inline bool whole_physics_steps(double rate_hz) {
   if (!(rate_hz > 0.0)) return false;
   const double steps = 1e6 / rate_hz / static_cast<double>(kPhysicsStepUs);
-  return steps >= 1.0 && steps - static_cast<double>(static_cast<int64_t>(steps + 0.5)) < 1e-9 &&
-         static_cast<double>(static_cast<int64_t>(steps + 0.5)) - steps < 1e-9;
+  return std::round(steps) >= 1.0 && std::abs(steps - std::round(steps)) < 1e-9;
 }
 
 /// Seconds as a double (for physics and output).
