@@ -76,6 +76,17 @@ Field integer(const std::string& key, int& target, const Where& w) {
           }};
 }
 
+// optional keys: unset unless the file gives them
+Field optional_number(const std::string& key, std::optional<double>& target, const Where& w) {
+  return {key, [&target, w, key](const YAML::Node& n) { target = read_number(n, w, key); }};
+}
+
+Field optional_integer(const std::string& key, std::optional<int>& target, const Where& w) {
+  return {key, [&target, w, key](const YAML::Node& n) {
+            target = static_cast<int>(read_integer(n, w, key));
+          }};
+}
+
 // reads a map section field by field; an unknown key is an error that lists the known ones
 void read_section(const YAML::Node& node, const Where& w, const std::vector<Field>& fields) {
   if (!node.IsMap())
@@ -433,23 +444,12 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                        integer("max_cones_hit", s.pass.max_cones_hit, w),
                        integer("max_off_course", s.pass.max_off_course, w),
                        number("max_final_time_s", s.pass.max_final_time_s, w),
-                       {"max_map_rmse_m",
-                        [&](const YAML::Node& v) {
-                          s.pass.max_map_rmse_m = read_number(v, w, "max_map_rmse_m");
-                        }},
-                       {"max_ate_rmse_m",
-                        [&](const YAML::Node& v) {
-                          s.pass.max_ate_rmse_m = read_number(v, w, "max_ate_rmse_m");
-                        }},
-                       {"min_da_correct_fraction",
-                        [&](const YAML::Node& v) {
-                          s.pass.min_da_correct_fraction =
-                              read_number(v, w, "min_da_correct_fraction");
-                        }},
-                       {"max_false_loop_closures", [&](const YAML::Node& v) {
-                          s.pass.max_false_loop_closures =
-                              static_cast<int>(read_integer(v, w, "max_false_loop_closures"));
-                        }}});
+                       optional_number("max_map_rmse_m", s.pass.max_map_rmse_m, w),
+                       optional_number("max_ate_rmse_m", s.pass.max_ate_rmse_m, w),
+                       optional_number("min_da_correct_fraction", s.pass.min_da_correct_fraction,
+                                       w),
+                       optional_integer("max_false_loop_closures",
+                                        s.pass.max_false_loop_closures, w)});
        }},
   };
   read_section(root, top, fields);

@@ -81,7 +81,7 @@ void GraphSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
   phase_ = core::SlamPhase::kMapping;
   map_complete_ = false;
   loop_closures_ = 0;
-  closure_due_travel_m_ = -1.0;
+  closure_due_travel_m_.reset();
   gyro_bias_rps_ = {0.0};
   first_localised_pose_ = 1;
   travel_m_ = 0.0;
@@ -117,12 +117,10 @@ void GraphSlam::process(const SlamInput& input) {
   }
   optimise_window();
   const LoopClosureStats stats = update_landmark_statistics();
-  if (loop_closures_ == 0 && closure_due_travel_m_ < 0.0 &&
-      loop_closed(config_.loop_closure, stats)) {
+  if (loop_closures_ > 0) return;
+  if (!closure_due_travel_m_ && loop_closed(config_.loop_closure, stats))
     closure_due_travel_m_ = travel_m_ + config_.loop_closure.closure_delay_m;
-  }
-  if (loop_closures_ == 0 && closure_due_travel_m_ >= 0.0 && travel_m_ >= closure_due_travel_m_)
-    close_loop();
+  if (closure_due_travel_m_ && travel_m_ >= *closure_due_travel_m_) close_loop();
 }
 
 void GraphSlam::predict(const OdometryDelta& odometry) {

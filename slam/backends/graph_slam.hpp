@@ -8,6 +8,7 @@
 #include <array>
 #include <deque>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -177,9 +178,8 @@ class GraphSlam : public Backend {
   core::SlamPhase phase_ = core::SlamPhase::kMapping;
   bool map_complete_ = false;
   int loop_closures_ = 0;
-  // the loop was seen to close and the global optimisation runs at this distance driven (-1:
-  // not yet seen)
-  double closure_due_travel_m_ = -1.0;
+  // the loop was seen to close and the global optimisation runs at this distance driven
+  std::optional<double> closure_due_travel_m_;
   /// Covariance of the newest pose, for the association gate: grown by the odometry, shrunk by
   /// the matched observations.
   Eigen::Matrix3d pose_covariance_ = Eigen::Matrix3d::Zero();
