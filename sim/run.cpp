@@ -188,8 +188,10 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       core::Estimate estimate;
       slam::frontend::SweepMotion odometry_motion;
       if (slam) {
-        // SLAM: every delivered frame updates the backend; the driver sees only its estimate
-        while (auto d = rig.take_detections(t)) slam->process(*d);
+        // SLAM: every delivered frame updates the backend (at once, or taking effect after the
+        // SLAM latency); the driver sees only its estimate
+        slam->catch_up(t);
+        while (auto d = rig.take_detections(t)) slam->process(*d, t);
         estimate = slam->estimate_now(t, &odometry_motion);
         obs = slam->observations_at(estimate.pose);
       } else {
@@ -260,6 +262,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     }
   }
   rig.finish();
+  if (slam) slam->finish();
   const double wall_s = std::chrono::duration<double>(clock::now() - wall_start).count();
 
   // the verdict and the pass criteria

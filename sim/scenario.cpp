@@ -301,6 +301,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
        }},
       {"seed", [&](const YAML::Node& n) { s.seed = read_seed(n, top, "seed"); }},
       number("start_delay_s", s.start_delay_s, top),
+      number("slam_latency_s", s.slam_latency_s, top),
       {"track",
        [&](const YAML::Node& n) {
          const Where w{fname, "track"};
@@ -515,6 +516,8 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
     if (!(s.sensors.camera_latency_s >= 0.0 && s.sensors.camera_latency_s <= 1.0))
       throw InputError(fname, "sensors.camera.latency_s", "expected a latency from 0 to 1 s");
   }
+  if (!(s.slam_latency_s >= 0.0 && s.slam_latency_s <= 1.0))
+    throw InputError(fname, "slam_latency_s", "expected a latency from 0 to 1 s");
   if (s.slam != "none" && s.perception == "ground_truth")
     throw InputError(fname, "slam", "SLAM needs observations with noise: set perception to "
                                     "cone_sensor, lidar, stereo or fused");

@@ -82,6 +82,11 @@ struct Scenario {
   std::string perception = "ground_truth";
   /// none (later: graph, ekf, fastslam1, fastslam2).
   std::string slam = "none";
+  /// How long a SLAM update takes on the sim clock, seconds: its estimate reaches the driver at
+  /// the first driver tick this long after the frame's delivery, and meanwhile the driver has
+  /// the previous estimate carried forward by the odometry. 0: at once (the update takes no
+  /// time). With more, the update runs on a thread of its own while the car drives on.
+  double slam_latency_s = 0.0;
   control::DriverParams driver;
   SensorSettings sensors;
   RefereeParams referee;

@@ -112,6 +112,8 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
   }
   last_estimate_ = backend_->estimate();
   last_frame_pose_ = start;
+  latency_us_ = core::from_seconds(s.slam_latency_s);
+  if (latency_us_ > 0) slam_thread_ = std::make_unique<WorkerThread>();
   cone_observed_.assign(static_cast<size_t>(track.next_id()), 0);
   cone_index_.assign(static_cast<size_t>(track.next_id()), -1);
   for (size_t k = 0; k < track.cones.size(); ++k)
@@ -146,22 +148,18 @@ void SlamRunner::step(TimeUs t, const VehicleSim& car) {
       in_flight_.push_back({t + steering_.config().timing.latency_us(), v});
     }
   }
-  // deliver in stamp order what has arrived
-  if (in_flight_.empty()) return;
-  bool delivered = false;
+  // deliver what has arrived; sensors with different latencies arrive out of stamp order, so
+  // each sample goes in after the queued ones stamped no later (the queue stays in stamp order,
+  // equal stamps in arrival order)
   while (!in_flight_.empty()) {
     auto it = std::min_element(in_flight_.begin(), in_flight_.end(),
                                [](const auto& a, const auto& b) { return a.first < b.first; });
     if (it->first > t) break;
-    delivered_.push_back(it->second);
+    auto at = delivered_.end();
+    while (at != delivered_.begin() && std::prev(at)->stamp > it->second.stamp) --at;
+    delivered_.insert(at, it->second);
     in_flight_.erase(it);
-    delivered = true;
   }
-  // sensors with different latencies arrive out of stamp order: keep the queue in stamp order
-  if (delivered)
-    std::stable_sort(
-        delivered_.begin(), delivered_.end(),
-        [](const VehicleSample& a, const VehicleSample& b) { return a.stamp < b.stamp; });
 }
 
 void SlamRunner::feed_until(slam::Odometry& odometry, TimeUs stamp,
@@ -175,20 +173,54 @@ void SlamRunner::feed_until(slam::Odometry& odometry, TimeUs stamp,
   }
 }
 
-void SlamRunner::process(const DeliveredDetections& frame) {
-  using clock = std::chrono::steady_clock;
+void SlamRunner::process(const DeliveredDetections& frame, TimeUs now) {
+  // the backend's input: the odometry up to the frame's stamp and its cones
   const TimeUs stamp = frame.observations.stamp;
   feed_until(odometry_, stamp, &delivered_);
-  const slam::SlamInput input{odometry_.take_delta(stamp), frame.observations};
-  const int closures_before = backend_->loop_closures();
+  slam::SlamInput input{odometry_.take_delta(stamp), frame.observations};
+  if (!slam_thread_) {
+    take_in(frame, run_update(input));
+    return;
+  }
+  // with a latency, the update runs on the SLAM thread (one at a time, in order)
+  const core::Pose2 delta = input.odometry.delta;
+  std::future<UpdateResult> result =
+      slam_thread_->post([this, input = std::move(input)] { return run_update(input); });
+  pending_.push_back({now + latency_us_, frame, delta, std::move(result)});
+}
 
-  // the update, timed
+void SlamRunner::catch_up(TimeUs t) {
+  while (!pending_.empty() && pending_.front().due_us <= t) {
+    PendingUpdate& update = pending_.front();
+    take_in(update.frame, update.result.get());
+    pending_.pop_front();
+  }
+}
+
+void SlamRunner::finish() {
+  catch_up(std::numeric_limits<TimeUs>::max());
+}
+
+SlamRunner::UpdateResult SlamRunner::run_update(const slam::SlamInput& input) {
+  // the update, timed in wall and in the thread's CPU time
+  using clock = std::chrono::steady_clock;
+  UpdateResult r;
   const auto start = clock::now();
   const double cpu_start = core::thread_cpu_ms();
   backend_->process(input);
-  update_cpu_ms_.push_back(core::thread_cpu_ms() - cpu_start);
-  update_ms_.push_back(std::chrono::duration<double, std::milli>(clock::now() - start).count());
-  last_estimate_ = backend_->estimate();
+  r.cpu_ms = core::thread_cpu_ms() - cpu_start;
+  r.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - start).count();
+  r.estimate = backend_->estimate();
+  r.associations = backend_->last_associations();
+  r.loop_closures = backend_->loop_closures();
+  return r;
+}
+
+void SlamRunner::take_in(const DeliveredDetections& frame, const UpdateResult& update) {
+  const TimeUs stamp = frame.observations.stamp;
+  update_cpu_ms_.push_back(update.cpu_ms);
+  update_ms_.push_back(update.wall_ms);
+  last_estimate_ = update.estimate;
   last_observations_ = frame.observations;
   last_frame_pose_ = last_estimate_.pose;
 
@@ -207,7 +239,7 @@ void SlamRunner::process(const DeliveredDetections& frame) {
 
   // associations against the labels: a match is right when the landmark's majority cone is
   // the observation's true cone
-  const auto& associations = backend_->last_associations();
+  const auto& associations = update.associations;
   for (size_t i = 0; i < associations.size() && i < frame.labels.cone_id.size(); ++i) {
     const int true_id = frame.labels.cone_id[i];
     if (true_id >= 0) cone_observed_[true_id] = 1;
@@ -229,8 +261,7 @@ void SlamRunner::process(const DeliveredDetections& frame) {
   }
 
   // a loop closure is false unless the car really is back near where it was long before
-  for (int k = closures_before; k < backend_->loop_closures(); ++k) {
-    ++loop_closures_;
+  for (; loop_closures_ < update.loop_closures; ++loop_closures_) {
     bool real = false;
     for (size_t j = 0; j < true_path_.size(); ++j) {
       if (travelled - true_odometer_[j] < kLoopTruthMinTravelM) break;
@@ -246,14 +277,13 @@ void SlamRunner::process(const DeliveredDetections& frame) {
 
   // the map error every few metres driven
   if (travelled >= next_map_snapshot_m_) {
-    snapshot_map_error(travelled);
+    snapshot_map_error(travelled, update.estimate);
     while (next_map_snapshot_m_ <= travelled) next_map_snapshot_m_ += kMapSnapshotEveryM;
   }
 }
 
-void SlamRunner::snapshot_map_error(double distance_m) {
+void SlamRunner::snapshot_map_error(double distance_m, const core::Estimate& e) {
   // the map now against the true cones observed so far, no alignment
-  const core::Estimate e = backend_->estimate();
   std::vector<core::Vec2> estimated, truth;
   std::vector<int> truth_slot;
   for (const core::MapCone& c : e.map) estimated.push_back(c.position);
@@ -287,9 +317,12 @@ core::Estimate SlamRunner::estimate_now(TimeUs t,
   std::deque<VehicleSample> pending = delivered_;
   feed_until(forward, t, &pending);
   const slam::OdometryDelta delta = forward.take_delta(t);
+  // the updates still running: the estimate before them, moved on by their odometry
+  core::Pose2 pose = last_estimate_.pose;
+  for (const PendingUpdate& update : pending_) pose = pose.compose(update.odometry_delta);
   core::Estimate e = last_estimate_;
   e.stamp = t;
-  e.pose = last_estimate_.pose.compose(delta.delta);
+  e.pose = pose.compose(delta.delta);
   e.speed_mps = forward.speed_mps();
   e.yaw_rate_rps = forward.yaw_rate_rps();
   if (motion) *motion = {forward.mean_speed_mps(), e.yaw_rate_rps};

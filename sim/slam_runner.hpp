@@ -1,13 +1,16 @@
 #pragma once
 // SLAM in the loop (`slam: graph`): the vehicle sensors feed the odometry on their schedules,
 // each delivered cone frame runs one backend update, and the driver gets the backend's estimate
-// carried forward to the present with the odometry since. Everything the backend does is scored
+// carried forward to the present with the odometry since. With `slam_latency_s` > 0 an update
+// takes that long on the sim clock: it runs on a thread of its own while the car drives on, and
+// its estimate reaches the driver at the first tick after the latency. Everything the backend does is scored
 // against ground truth here, in the harness: map, trajectory, associations, loop closures,
 // update time.
 
 #include <array>
 #include <deque>
 #include <filesystem>
+#include <future>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -17,6 +20,7 @@
 #include "sim/scenario.hpp"
 #include "sim/sensor_rig.hpp"
 #include "sim/vehicle_sim.hpp"
+#include "sim/worker_thread.hpp"
 #include "slam/backends/graph_slam.hpp"
 #include "slam/frontend/lidar_cone_detector.hpp"
 #include "slam/odometry.hpp"
@@ -33,8 +37,17 @@ class SlamRunner {
   /// Samples the vehicle sensors due at t.
   void step(core::TimeUs t, const VehicleSim& car);
 
-  /// Runs the backend on a delivered cone frame (true pose at capture for the scoring).
-  void process(const DeliveredDetections& frame);
+  /// Runs the backend on a cone frame delivered at time now (true pose at capture for the
+  /// scoring): at once, or, with a SLAM latency, on the SLAM thread, its estimate taking effect
+  /// in catch_up() once the latency has passed.
+  void process(const DeliveredDetections& frame, core::TimeUs now);
+
+  /// Takes in the updates whose latency has passed by time t, oldest first (call before
+  /// process() and estimate_now() at each tick).
+  void catch_up(core::TimeUs t);
+
+  /// Takes in every update still running (at the end of a run, before metrics()).
+  void finish();
 
   /// The estimate at time t: the backend's, moved forward by the odometry since its last frame.
   /// With `motion`, also the odometry's motion at t for perception: the speed averaged over the
@@ -85,9 +98,29 @@ class SlamRunner {
 
  private:
   struct VehicleSample;
+  // what an update leaves for the harness: the estimate after it and what it did
+  struct UpdateResult {
+    core::Estimate estimate;
+    std::vector<slam::Association> associations;
+    int loop_closures = 0;
+    double wall_ms = 0.0;
+    double cpu_ms = 0.0;
+  };
+  // an update running on the SLAM thread (or done), and when its estimate takes effect
+  struct PendingUpdate {
+    core::TimeUs due_us;
+    DeliveredDetections frame;
+    // the odometry of the update's input: the motion from the previous frame to this one
+    core::Pose2 odometry_delta;
+    std::future<UpdateResult> result;
+  };
+  // one backend update, timed on the thread that runs it
+  UpdateResult run_update(const slam::SlamInput& input);
+  // the harness's side of an update: the estimate the driver sees, and the scoring
+  void take_in(const DeliveredDetections& frame, const UpdateResult& update);
   void feed_until(slam::Odometry& odometry, core::TimeUs stamp,
                   std::deque<VehicleSample>* queue) const;
-  void snapshot_map_error(double distance_m);
+  void snapshot_map_error(double distance_m, const core::Estimate& estimate);
   const tracks::Cone& true_cone(int id) const { return track_.cones[cone_index_[id]]; }
 
   const tracks::Track& track_;
@@ -108,6 +141,10 @@ class SlamRunner {
   std::deque<std::pair<core::TimeUs, VehicleSample>> in_flight_;
   std::deque<VehicleSample> delivered_;
   core::TimeUs now_ = 0;
+
+  // the SLAM latency; the thread and the updates in flight on it when it is > 0
+  core::TimeUs latency_us_ = 0;
+  std::deque<PendingUpdate> pending_;
 
   core::Estimate last_estimate_;
   core::ConeObservations last_observations_;
@@ -136,6 +173,8 @@ class SlamRunner {
   std::vector<int> cone_index_;
   double next_map_snapshot_m_ = 0.0;
   std::vector<MapErrorSnapshot> map_error_over_distance_;
+  // last member: its jobs use the backend, so it stops before the members above go
+  std::unique_ptr<WorkerThread> slam_thread_;
 };
 
 }  // namespace conesim::sim

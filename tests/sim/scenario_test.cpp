@@ -102,6 +102,10 @@ TEST_F(ScenarioFile, BadInputNamesFileLineAndKey) {
             std::string::npos);
   EXPECT_NE(error_of("event: autocross\npass: {max_ate_rmse_m: 0.2}\n").find("need slam: graph"),
             std::string::npos);
+  // the SLAM latency: a time from 0 to 1 s
+  EXPECT_NE(error_of(slam + "slam_latency_s: -0.05\n").find("slam_latency_s: expected a latency"),
+            std::string::npos);
+  EXPECT_NE(error_of(slam + "slam_latency_s: .nan\n").find("slam_latency_s"), std::string::npos);
 }
 
 TEST_F(ScenarioFile, UnknownScenarioNameListsTheShippedOnes) {
