@@ -108,6 +108,35 @@ void cast_rays(int count, const float* __restrict cos_elevation,
   }
 }
 
+// draws normal samples from the block the sampler has ready, so that a hot loop keeps its place
+// in registers instead of the sampler's memory (which the loop's stores might alias); the same
+// samples in the same order as drawing them one by one, once finish() has handed back the count
+class NormalDraws {
+ public:
+  explicit NormalDraws(core::ZigguratNormals& normal) : normal_(normal) {}
+
+  // the next sample
+  float operator()() {
+    if (drawn_ == ready_) [[unlikely]] {
+      normal_.take(drawn_);
+      samples_ = normal_.ready(ready_);
+      drawn_ = 0;
+    }
+    return samples_[drawn_++];
+  }
+
+  // the sampler takes the samples drawn
+  void finish() {
+    normal_.take(drawn_);
+    drawn_ = ready_ = 0;
+  }
+
+ private:
+  core::ZigguratNormals& normal_;
+  const float* samples_ = nullptr;
+  int ready_ = 0, drawn_ = 0;
+};
+
 // A horizontal fan of rays, as seen from above: every ray starts within `spread` of the origin,
 // runs at most `reach` and heads within the angle atan(tan_half_angle) of the unit axis
 // (wide: any heading). may_meet() is conservative: false only when no ray comes within r of c.
@@ -203,8 +232,19 @@ struct Lidar::Impl {
     std::vector<float> range, intensity;
     std::vector<int> label;
     std::array<Eigen::Vector3f, kChunkColumns> origin;
+    // the points of the chunk's returns and their labels, before they join the scan
+    std::vector<core::LidarPoint> points;
+    std::vector<int> point_label;
     explicit ChunkRays(size_t n)
-        : dir_x(n), dir_y(n), dir_z(n), length(n), range(n), intensity(n), label(n) {}
+        : dir_x(n),
+          dir_y(n),
+          dir_z(n),
+          length(n),
+          range(n),
+          intensity(n),
+          label(n),
+          points(n),
+          point_label(n) {}
   };
 
   void build_beams();
@@ -472,7 +512,6 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
   std::array<Fan, kChunkColumns> column_fans;
   size_t pose_cursor = 0;
   core::Rng& rng = noise.rng;
-  core::ZigguratNormals& normal = noise.normal;
   const float range_sigma = static_cast<float>(cfg.range_noise_sigma_m);
   const float intensity_sigma = static_cast<float>(cfg.intensity_noise_sigma);
   const float min_range = static_cast<float>(cfg.min_range_m);
@@ -614,21 +653,18 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
       }
     }
 
-    // room for every return of the chunk: the points are written in place, and the cloud cut
-    // back to those kept
+    // the chunk's rays and returns
     const int chunk_rays = chunk * channel_count;
     int returns = 0;
     for (int slot = 0; slot < chunk_rays; ++slot) returns += rays.label[slot] != kNoReturn;
-    const size_t kept_before = scan.cloud.points.size();
-    scan.cloud.points.resize(kept_before + static_cast<size_t>(returns));
-    scan.labels.cone_id.resize(scan.cloud.points.size());
-    core::LidarPoint* point = scan.cloud.points.data() + kept_before;
-    int* point_label = scan.labels.cone_id.data() + kept_before;
     scan.stats.rays += chunk_rays;
     scan.stats.hits += returns;
 
     // each return becomes a point, in firing order, unless a fault or the range window takes it
     int64_t dropped = 0, out_of_range = 0;
+    NormalDraws draw(noise.normal);
+    core::LidarPoint* point = rays.points.data();
+    int* point_label = rays.point_label.data();
     for (int j = 0; j < chunk; ++j) {
       const int c = c0 + j;
       const float time_offset_s = static_cast<float>(core::to_seconds(im.column_offset_us[c]));
@@ -646,13 +682,13 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
 
         // range noise; a noisy range outside the sensor's window is no return
         const float range = rays.range[first + ch];
-        const float measured = range_sigma > 0.f ? range + range_sigma * normal() : range;
+        const float measured = range_sigma > 0.f ? range + range_sigma * draw() : range;
         if (measured < min_range || measured > max_range) {
           ++out_of_range;
           continue;
         }
         float intensity = rays.intensity[first + ch];
-        if (intensity_sigma > 0.f) intensity += intensity_sigma * normal();
+        if (intensity_sigma > 0.f) intensity += intensity_sigma * draw();
 
         // the point in the sensor frame of its column
         const float horizontal = im.channel_cos[ch] * measured;
@@ -662,11 +698,16 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
         *point_label++ = label;
       }
     }
+    draw.finish();
     scan.stats.dropped += dropped;
     scan.stats.out_of_range += out_of_range;
-    const size_t kept = static_cast<size_t>(point - scan.cloud.points.data());
-    scan.cloud.points.resize(kept);
-    scan.labels.cone_id.resize(kept);
+
+    // the chunk's points join the scan
+    const size_t kept = static_cast<size_t>(point - rays.points.data());
+    scan.cloud.points.insert(scan.cloud.points.end(), rays.points.begin(),
+                             rays.points.begin() + kept);
+    scan.labels.cone_id.insert(scan.labels.cone_id.end(), rays.point_label.begin(),
+                               rays.point_label.begin() + kept);
   }
 }
 
