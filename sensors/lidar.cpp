@@ -108,6 +108,21 @@ void cast_rays(int count, const float* __restrict cos_elevation,
   }
 }
 
+// for count rays from one origin, whether each ray's track on the ground, up to its length,
+// passes farther than radius from the point (cx, cy) relative to the origin: the first test of
+// whether a ray passes near a cone, for a column's rays at once
+void far_from(int count, float cx, float cy, float radius, const float* __restrict dir_x,
+              const float* __restrict dir_y, const float* __restrict length, int* __restrict far) {
+  for (int ch = 0; ch < count; ++ch) {
+    const float dx = dir_x[ch], dy = dir_y[ch];
+    const float squared = dx * dx + dy * dy;
+    const float closest = (cx * dx + cy * dy) / squared;
+    const float t = std::min(std::max(closest, 0.f), length[ch]);
+    const float ex = cx - t * dx, ey = cy - t * dy;
+    far[ch] = ex * ex + ey * ey > radius * radius;
+  }
+}
+
 // draws normal samples from the block the sampler has ready, so that a hot loop keeps its place
 // in registers instead of the sampler's memory (which the loop's stores might alias); the same
 // samples in the same order as drawing them one by one, once finish() has handed back the count
@@ -235,6 +250,8 @@ struct Lidar::Impl {
     // the points of the chunk's returns and their labels, before they join the scan
     std::vector<core::LidarPoint> points;
     std::vector<int> point_label;
+    // for each cone near a column and each of its rays, whether the ray passes far from it
+    std::vector<int> far;
     explicit ChunkRays(size_t n)
         : dir_x(n),
           dir_y(n),
@@ -615,6 +632,16 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
       // a column clear of every cone (most of them) meets only the ground, as cast already
       if (column_cones.empty() && !anywhere) continue;
 
+      // which rays pass far from each cone, for all the column's rays at once (from under the
+      // ground every ray is near them all)
+      const size_t cone_count = column_cones.size();
+      if (rays.far.size() < cone_count * channel_count) rays.far.resize(cone_count * channel_count);
+      if (!anywhere)
+        for (size_t k = 0; k < cone_count; ++k)
+          far_from(channel_count, column_cones[k].x, column_cones[k].y, column_cones[k].radius,
+                   rays.dir_x.data() + first, rays.dir_y.data() + first, rays.length.data() + first,
+                   rays.far.data() + k * channel_count);
+
       for (int slot = first; slot < last; ++slot) {
         // a ray that ends where it starts meets nothing
         const float length = rays.length[slot];
@@ -631,12 +658,11 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
         const bool near_all = anywhere || !(squared > 1e-6f);
         float reach = rays.label[slot] == kNoReturn ? length : rays.range[slot];
         bool traced = false;
-        for (const NearCone& cone : column_cones) {
+        for (size_t k = 0; k < cone_count; ++k) {
+          const NearCone& cone = column_cones[k];
           if (!near_all) {
+            if (rays.far[k * channel_count + (slot - first)]) continue;
             const float closest = (cone.x * dx + cone.y * dy) / squared;
-            const float t = std::min(std::max(closest, 0.f), length);
-            const float ex = cone.x - t * dx, ey = cone.y - t * dy;
-            if (ex * ex + ey * ey > cone.radius * cone.radius) continue;
             // the stretch of the ray over the footprint, and its lowest point there
             const float miss_squared =
                 std::max(0.f, cone.x * cone.x + cone.y * cone.y - closest * closest * squared);
