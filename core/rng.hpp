@@ -173,29 +173,44 @@ class ZigguratNormals {
     return block_[next_++];
   }
 
+  /// The samples ready to be drawn, in the order operator() gives them, and their count (at
+  /// least one: a new block when none is left). For hot loops, which read them from the pointer
+  /// and then take() as many as they used.
+  const float* ready(int& count) {
+    if (next_ == kBlock) refill();
+    count = kBlock - next_;
+    return block_ + next_;
+  }
+
+  /// Draws the first count samples that ready() offered (count at most what it offered).
+  void take(int count) { next_ += count; }
+
  private:
   static constexpr int kBlock = 64;
 
-  // the next block of samples, two from each output of the generator: first every sample as if
-  // it fell inside its layer's rectangle (no branch), then the rare others drawn again
+  // the next block of samples, two from each output of the generator: the block's bits first
+  // (the generator's own dependency chain alone), then every sample as if it fell inside its
+  // layer's rectangle (no branch), then the rare others drawn again, in order
   void refill() {
-    uint32_t rejected_bits[kBlock];
-    int rejected[kBlock];
-    int rejected_count = 0;
+    uint32_t half_bits[kBlock];
     for (int i = 0; i < kBlock; i += 2) {
       const uint64_t both = bits_();
-      for (int half = 0; half < 2; ++half) {
-        const uint32_t bits = static_cast<uint32_t>(both >> (32 * half));
-        const unsigned layer = bits & 0xFF;
-        const float x = static_cast<float>(bits >> 9) * 0x1.0p-23f * table_.x_single[layer];
-        block_[i + half] =
-            std::bit_cast<float>(std::bit_cast<uint32_t>(x) | ((bits & 0x100u) << 23));
-        rejected_bits[rejected_count] = bits;
-        rejected[rejected_count] = i + half;
-        rejected_count += !(x < table_.x_single[layer + 1]);
-      }
+      half_bits[i] = static_cast<uint32_t>(both);
+      half_bits[i + 1] = static_cast<uint32_t>(both >> 32);
     }
-    for (int k = 0; k < rejected_count; ++k) block_[rejected[k]] = outside(rejected_bits[k]);
+    bool rejected[kBlock];
+    for (int i = 0; i < kBlock; ++i) {
+      // layer from 8 bits, sign from 1, abscissa from the top 23 (exact in an int32)
+      const uint32_t bits = half_bits[i];
+      const unsigned layer = bits & 0xFF;
+      const float x =
+          static_cast<float>(static_cast<int32_t>(bits >> 9)) * 0x1.0p-23f * table_.x_single[layer];
+      block_[i] = std::bit_cast<float>(std::bit_cast<uint32_t>(x) | ((bits & 0x100u) << 23));
+      rejected[i] = !(x < table_.x_single[layer + 1]);
+    }
+    for (int i = 0; i < kBlock; ++i)
+      if (rejected[i]) [[unlikely]]
+        block_[i] = outside(half_bits[i]);
     next_ = 0;
   }
 

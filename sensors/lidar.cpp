@@ -27,16 +27,6 @@ constexpr int kChunkColumns = 32;
 // than the rounding of the single-precision tests, far less than the gap between cones
 constexpr float kFootprintSlackM = 0.01f;
 
-// how far a ray can find anything: down to just past the ground plane, or up to where it
-// climbs above the tallest cone (0 when it starts above everything and does not descend)
-float ray_length(float origin_z, float dir_z, float max_range, float top_z) {
-  constexpr float kGroundSlackM = 1e-3f;
-  if (dir_z < 0.f) return std::min(max_range, -origin_z / dir_z * 1.0001f + kGroundSlackM);
-  if (origin_z >= top_z) return 0.f;
-  if (dir_z > 0.f) return std::min(max_range, (top_z - origin_z) / dir_z);
-  return max_range;
-}
-
 int class_index(core::ConeClass c) {
   return static_cast<int>(c);
 }
@@ -59,6 +49,108 @@ RTCGeometry make_triangle_geometry(RTCDevice device, const std::vector<Eigen::Ve
   rtcCommitGeometry(geom);
   return geom;
 }
+
+// what the ray loops need of the scene: the max range, the height of the tallest cone, the ground
+// rectangle and the ground's intensity before the incidence and the range fall-off
+struct RayBounds {
+  float max_range = 0.f, top_z = 0.f;
+  float lo_x = 0.f, lo_y = 0.f, hi_x = 0.f, hi_y = 0.f;
+  float falloff = 0.f, ground_scale = 0.f;
+};
+
+// the label of a ray that meets nothing
+constexpr int kNoReturn = std::numeric_limits<int>::min();
+
+// count rays from origin, one per channel: their directions, how far each can find anything, and
+// where each meets the ground plane (kNoReturn where it does not). One branch-free pass over
+// arrays that do not overlap, so that the compiler casts several rays at a time
+void cast_rays(int count, const float* __restrict cos_elevation,
+               const float* __restrict sin_elevation, const Eigen::Vector3f& origin,
+               const Eigen::Vector3f& heading, const Eigen::Vector3f& up, const RayBounds& bounds,
+               float* __restrict dir_x, float* __restrict dir_y, float* __restrict dir_z,
+               float* __restrict length, float* __restrict range, float* __restrict intensity,
+               int* __restrict label) {
+  const float ox = origin.x(), oy = origin.y(), oz = origin.z();
+  const float hx = heading.x(), hy = heading.y(), hz = heading.z();
+  const float ux = up.x(), uy = up.y(), uz = up.z();
+  const float max_range = bounds.max_range, top_z = bounds.top_z;
+  const float lo_x = bounds.lo_x, lo_y = bounds.lo_y, hi_x = bounds.hi_x, hi_y = bounds.hi_y;
+  const float falloff = bounds.falloff, ground_scale = bounds.ground_scale;
+  constexpr float kGroundSlackM = 1e-3f;
+  const bool above_all = oz >= top_z;
+  for (int ch = 0; ch < count; ++ch) {
+    // the beam's direction: its elevation between the heading and the up axis
+    const float dx = cos_elevation[ch] * hx + sin_elevation[ch] * ux;
+    const float dy = cos_elevation[ch] * hy + sin_elevation[ch] * uy;
+    const float dz = cos_elevation[ch] * hz + sin_elevation[ch] * uz;
+    dir_x[ch] = dx;
+    dir_y[ch] = dy;
+    dir_z[ch] = dz;
+
+    // how far it can find anything: down to just past the ground plane, or up to where it
+    // climbs above the tallest cone (0 when it starts above everything and does not descend)
+    const float t = -oz / dz;
+    const float down = t * 1.0001f + kGroundSlackM;
+    const float climb = (top_z - oz) / dz;
+    const float rising = climb < max_range ? climb : max_range;
+    const float falling = down < max_range ? down : max_range;
+    const float level = above_all ? 0.f : (dz > 0.f ? rising : max_range);
+    length[ch] = dz < 0.f ? falling : level;
+
+    // the ground plane, if the ray crosses it ahead within the max range and over the ground
+    // rectangle, with the intensity of the ground there
+    const float x = ox + t * dx, y = oy + t * dy;
+    const bool hit =
+        (t >= 0.f) & (t <= max_range) & (x >= lo_x) & (x <= hi_x) & (y >= lo_y) & (y <= hi_y);
+    label[ch] = hit ? core::PointCloudLabels::kGroundLabel : kNoReturn;
+    range[ch] = t;
+    intensity[ch] = ground_scale * std::abs(dz) / (1.f + t * t * falloff);
+  }
+}
+
+// for count rays from one origin, whether each ray's track on the ground, up to its length,
+// passes farther than radius from the point (cx, cy) relative to the origin: the first test of
+// whether a ray passes near a cone, for a column's rays at once
+void far_from(int count, float cx, float cy, float radius, const float* __restrict dir_x,
+              const float* __restrict dir_y, const float* __restrict length, int* __restrict far) {
+  for (int ch = 0; ch < count; ++ch) {
+    const float dx = dir_x[ch], dy = dir_y[ch];
+    const float squared = dx * dx + dy * dy;
+    const float closest = (cx * dx + cy * dy) / squared;
+    const float t = std::min(std::max(closest, 0.f), length[ch]);
+    const float ex = cx - t * dx, ey = cy - t * dy;
+    far[ch] = ex * ex + ey * ey > radius * radius;
+  }
+}
+
+// draws normal samples from the block the sampler has ready, so that a hot loop keeps its place
+// in registers instead of the sampler's memory (which the loop's stores might alias); the same
+// samples in the same order as drawing them one by one, once finish() has handed back the count
+class NormalDraws {
+ public:
+  explicit NormalDraws(core::ZigguratNormals& normal) : normal_(normal) {}
+
+  // the next sample
+  float operator()() {
+    if (drawn_ == ready_) [[unlikely]] {
+      normal_.take(drawn_);
+      samples_ = normal_.ready(ready_);
+      drawn_ = 0;
+    }
+    return samples_[drawn_++];
+  }
+
+  // the sampler takes the samples drawn
+  void finish() {
+    normal_.take(drawn_);
+    drawn_ = ready_ = 0;
+  }
+
+ private:
+  core::ZigguratNormals& normal_;
+  const float* samples_ = nullptr;
+  int ready_ = 0, drawn_ = 0;
+};
 
 // A horizontal fan of rays, as seen from above: every ray starts within `spread` of the origin,
 // runs at most `reach` and heads within the angle atan(tan_half_angle) of the unit axis
@@ -125,6 +217,8 @@ struct Lidar::Impl {
   // one scene per cone class, holding its mesh in the cone's own frame
   std::array<RTCScene, kClassCount> class_scenes{};
   std::vector<Channel> channels;
+  // the same, one array per term, for the loops over a column's rays
+  std::vector<float> channel_cos, channel_sin;
   std::vector<float> column_cos;
   std::vector<float> column_sin;
   std::vector<core::TimeUs> column_offset_us;
@@ -133,10 +227,9 @@ struct Lidar::Impl {
   std::array<std::vector<float>, kClassCount> class_reflectivity;
   std::vector<SceneCone> cones;
   std::unordered_map<int, int> cone_index;
-  // the ground: the plane z = 0 over this rectangle
-  float ground_lo_x = 0.f, ground_lo_y = 0.f, ground_hi_x = 0.f, ground_hi_y = 0.f;
-  // nothing in the scene is higher than this: rays are cut where they climb above it
-  float scene_top_z = 0.f;
+  // the ground (the plane z = 0 over a rectangle) and the height above which nothing stands,
+  // where rays are cut
+  RayBounds ray_bounds;
   float inverse_squared_falloff = 0.f;
   // the mount as a rotation and a translation
   Eigen::Matrix3d mount_rotation = Eigen::Matrix3d::Identity();
@@ -149,22 +242,34 @@ struct Lidar::Impl {
   }
 
   // the rays of a chunk of columns and what each met (label kNoReturn: nothing)
-  static constexpr int kNoReturn = std::numeric_limits<int>::min();
   struct ChunkRays {
     std::vector<float> dir_x, dir_y, dir_z, length;
     std::vector<float> range, intensity;
     std::vector<int> label;
     std::array<Eigen::Vector3f, kChunkColumns> origin;
+    // the points of the chunk's returns and their labels, before they join the scan
+    std::vector<core::LidarPoint> points;
+    std::vector<int> point_label;
+    // for each cone near a column and each of its rays, whether the ray passes far from it
+    std::vector<int> far;
     explicit ChunkRays(size_t n)
-        : dir_x(n), dir_y(n), dir_z(n), length(n), range(n), intensity(n), label(n) {}
+        : dir_x(n),
+          dir_y(n),
+          dir_z(n),
+          length(n),
+          range(n),
+          intensity(n),
+          label(n),
+          points(n),
+          point_label(n) {}
   };
 
   void build_beams();
   void build_scene(const tracks::Track& track);
   void throw_on_device_error(const char* what) const;
   float intensity_of(float reflectivity_of_surface, float cos_incidence, float range) const;
-  void hit_ground(ChunkRays& rays, int slot, const Eigen::Vector3f& origin, float max_range,
-                  float ground_reflectivity) const;
+  float cast_column(ChunkRays& rays, int first, const Eigen::Vector3f& origin,
+                    const Eigen::Vector3f& heading, const Eigen::Vector3f& up) const;
   void hit_cone(const SceneCone& cone, const Eigen::Vector3f& origin, RTCIntersectContext& context,
                 ChunkRays& rays, int slot, float& reach) const;
 };
@@ -176,19 +281,20 @@ float Lidar::Impl::intensity_of(float reflectivity_of_surface, float cos_inciden
          (1.f + range * range * inverse_squared_falloff);
 }
 
-// the ground plane, if the ray crosses it ahead within the max range and over the ground
-// rectangle; without branches, so that the rays of a column clear of every cone go through
-// together
-inline void Lidar::Impl::hit_ground(ChunkRays& rays, int slot, const Eigen::Vector3f& origin,
-                                    float max_range, float ground_reflectivity) const {
-  const float dz = rays.dir_z[slot];
-  const float t = -origin.z() / dz;
-  const float x = origin.x() + t * rays.dir_x[slot], y = origin.y() + t * rays.dir_y[slot];
-  const bool hit = t >= 0.f && t <= max_range && x >= ground_lo_x && x <= ground_hi_x &&
-                   y >= ground_lo_y && y <= ground_hi_y;
-  rays.label[slot] = hit ? core::PointCloudLabels::kGroundLabel : kNoReturn;
-  rays.range[slot] = t;
-  rays.intensity[slot] = intensity_of(ground_reflectivity, std::abs(dz), t);
+// a column's rays from origin: their directions, how far each can find anything, and where each
+// meets the ground plane; returns the longest ray
+float Lidar::Impl::cast_column(ChunkRays& rays, int first, const Eigen::Vector3f& origin,
+                               const Eigen::Vector3f& heading, const Eigen::Vector3f& up) const {
+  const int count = static_cast<int>(channels.size());
+  cast_rays(count, channel_cos.data(), channel_sin.data(), origin, heading, up, ray_bounds,
+            rays.dir_x.data() + first, rays.dir_y.data() + first, rays.dir_z.data() + first,
+            rays.length.data() + first, rays.range.data() + first, rays.intensity.data() + first,
+            rays.label.data() + first);
+
+  // the longest ray
+  float reach = 0.f;
+  for (int slot = first; slot < first + count; ++slot) reach = std::max(reach, rays.length[slot]);
+  return reach;
 }
 
 // the cone's mesh, if the ray meets it nearer than reach (then reach becomes its range): the ray
@@ -232,6 +338,8 @@ void Lidar::Impl::build_beams() {
   for (double e : elevations) {
     const double rad = e * std::numbers::pi / 180.0;
     channels.push_back({static_cast<float>(std::cos(rad)), static_cast<float>(std::sin(rad))});
+    channel_cos.push_back(channels.back().cos_elevation);
+    channel_sin.push_back(channels.back().sin_elevation);
   }
 
   // columns: azimuth and firing time inside the sweep (whole microseconds)
@@ -254,6 +362,11 @@ void Lidar::Impl::build_beams() {
   // reflectivity per material
   for (int m = 0; m < kSurfaceMaterialCount; ++m)
     reflectivity[m] = static_cast<float>(config.reflectivity.of(static_cast<SurfaceMaterial>(m)));
+
+  // what the ray loops need besides the ground rectangle and the top (build_scene's)
+  ray_bounds.max_range = static_cast<float>(config.max_range_m);
+  ray_bounds.falloff = inverse_squared_falloff;
+  ray_bounds.ground_scale = 255.f * reflectivity[static_cast<int>(SurfaceMaterial::kGround)];
 }
 
 void Lidar::Impl::build_scene(const tracks::Track& track) {
@@ -269,10 +382,10 @@ void Lidar::Impl::build_scene(const tracks::Track& track) {
   const double margin = config.max_range_m + kGroundMarginM;
   lo.array() -= margin;
   hi.array() += margin;
-  ground_lo_x = static_cast<float>(lo.x());
-  ground_lo_y = static_cast<float>(lo.y());
-  ground_hi_x = static_cast<float>(hi.x());
-  ground_hi_y = static_cast<float>(hi.y());
+  ray_bounds.lo_x = static_cast<float>(lo.x());
+  ray_bounds.lo_y = static_cast<float>(lo.y());
+  ray_bounds.hi_x = static_cast<float>(hi.x());
+  ray_bounds.hi_y = static_cast<float>(hi.y());
 
   // one scene per class, built once at high quality, its materials shared by its cones
   std::array<float, kClassCount> footprint{};
@@ -299,7 +412,7 @@ void Lidar::Impl::build_scene(const tracks::Track& track) {
     cone_index[cone.id] = static_cast<int>(cones.size());
     const float top = static_cast<float>(cone_shape(cone.cls).height_m + kTopSlackM);
     cones.push_back({cone.id, k, x, y, footprint[k], top, true});
-    scene_top_z = std::max(scene_top_z, top);
+    ray_bounds.top_z = std::max(ray_bounds.top_z, top);
   }
   throw_on_device_error("building the scene");
 }
@@ -407,7 +520,7 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
     if (cone.present) standing.push_back(&cone);
   std::vector<const Impl::SceneCone*> chunk_cones;
   std::vector<NearCone> column_cones;
-  const float ground_reflectivity = im.reflectivity[static_cast<int>(SurfaceMaterial::kGround)];
+  // the ground's intensity before the incidence and the range fall-off
 
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
@@ -416,7 +529,6 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
   std::array<Fan, kChunkColumns> column_fans;
   size_t pose_cursor = 0;
   core::Rng& rng = noise.rng;
-  core::ZigguratNormals& normal = noise.normal;
   const float range_sigma = static_cast<float>(cfg.range_noise_sigma_m);
   const float intensity_sigma = static_cast<float>(cfg.intensity_noise_sigma);
   const float min_range = static_cast<float>(cfg.min_range_m);
@@ -443,17 +555,7 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
       Fan& fan = column_fans[j];
       fan.origin_x = origin.x();
       fan.origin_y = origin.y();
-      fan.reach = 0.f;
-      for (int ch = 0; ch < channel_count; ++ch) {
-        const int slot = j * channel_count + ch;
-        const Impl::Channel& beam = im.channels[ch];
-        const Eigen::Vector3f d = beam.cos_elevation * heading + beam.sin_elevation * up;
-        rays.dir_x[slot] = d.x();
-        rays.dir_y[slot] = d.y();
-        rays.dir_z[slot] = d.z();
-        rays.length[slot] = ray_length(origin.z(), d.z(), max_range, im.scene_top_z);
-        fan.reach = std::max(fan.reach, rays.length[slot]);
-      }
+      fan.reach = im.cast_column(rays, j * channel_count, origin, heading, up);
 
       // headings of the beams turn monotonically with elevation: the lowest and the highest
       // bound the column's fan
@@ -527,34 +629,40 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
                                   cone->footprint_m + kFootprintSlackM, cone->top_m,
                                   static_cast<int>(cone - im.cones.data())});
 
-      // a column clear of every cone (most of them) meets only the ground
-      if (column_cones.empty() && !anywhere) {
-        for (int slot = first; slot < last; ++slot)
-          im.hit_ground(rays, slot, origin, max_range, ground_reflectivity);
-        continue;
-      }
+      // a column clear of every cone (most of them) meets only the ground, as cast already
+      if (column_cones.empty() && !anywhere) continue;
+
+      // which rays pass far from each cone, for all the column's rays at once (from under the
+      // ground every ray is near them all)
+      const size_t cone_count = column_cones.size();
+      if (rays.far.size() < cone_count * channel_count) rays.far.resize(cone_count * channel_count);
+      if (!anywhere)
+        for (size_t k = 0; k < cone_count; ++k)
+          far_from(channel_count, column_cones[k].x, column_cones[k].y, column_cones[k].radius,
+                   rays.dir_x.data() + first, rays.dir_y.data() + first, rays.length.data() + first,
+                   rays.far.data() + k * channel_count);
 
       for (int slot = first; slot < last; ++slot) {
         // a ray that ends where it starts meets nothing
         const float length = rays.length[slot];
-        rays.label[slot] = Impl::kNoReturn;
-        if (!(length > 0.f)) continue;
+        if (!(length > 0.f)) {
+          rays.label[slot] = kNoReturn;
+          continue;
+        }
 
-        // the ground, then every cone the ray passes near, through its mesh: near when the
-        // ray's track on the ground enters the cone's footprint and the ray is below the cone's
+        // the ground (as cast), then every cone the ray passes near, through its mesh: near when
+        // the ray's track on the ground enters the cone's footprint and the ray is below the cone's
         // top somewhere over it (a steep ray, or one from under the ground, is near them all)
         const float dx = rays.dir_x[slot], dy = rays.dir_y[slot], dz = rays.dir_z[slot];
         const float squared = dx * dx + dy * dy;
         const bool near_all = anywhere || !(squared > 1e-6f);
-        im.hit_ground(rays, slot, origin, max_range, ground_reflectivity);
-        float reach = rays.label[slot] == Impl::kNoReturn ? length : rays.range[slot];
+        float reach = rays.label[slot] == kNoReturn ? length : rays.range[slot];
         bool traced = false;
-        for (const NearCone& cone : column_cones) {
+        for (size_t k = 0; k < cone_count; ++k) {
+          const NearCone& cone = column_cones[k];
           if (!near_all) {
+            if (rays.far[k * channel_count + (slot - first)]) continue;
             const float closest = (cone.x * dx + cone.y * dy) / squared;
-            const float t = std::min(std::max(closest, 0.f), length);
-            const float ex = cone.x - t * dx, ey = cone.y - t * dy;
-            if (ex * ex + ey * ey > cone.radius * cone.radius) continue;
             // the stretch of the ray over the footprint, and its lowest point there
             const float miss_squared =
                 std::max(0.f, cone.x * cone.x + cone.y * cone.y - closest * closest * squared);
@@ -571,43 +679,61 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
       }
     }
 
+    // the chunk's rays and returns
+    const int chunk_rays = chunk * channel_count;
+    int returns = 0;
+    for (int slot = 0; slot < chunk_rays; ++slot) returns += rays.label[slot] != kNoReturn;
+    scan.stats.rays += chunk_rays;
+    scan.stats.hits += returns;
+
     // each return becomes a point, in firing order, unless a fault or the range window takes it
+    int64_t dropped = 0, out_of_range = 0;
+    NormalDraws draw(noise.normal);
+    core::LidarPoint* point = rays.points.data();
+    int* point_label = rays.point_label.data();
     for (int j = 0; j < chunk; ++j) {
       const int c = c0 + j;
       const float time_offset_s = static_cast<float>(core::to_seconds(im.column_offset_us[c]));
-      scan.stats.rays += channel_count;
+      const float column_cos = im.column_cos[c], column_sin = im.column_sin[c];
+      const int first = j * channel_count;
       for (int ch = 0; ch < channel_count; ++ch) {
-        const int slot = j * channel_count + ch;
-        const int label = rays.label[slot];
-        if (label == Impl::kNoReturn) continue;
+        const int label = rays.label[first + ch];
+        if (label == kNoReturn) continue;
 
         // a return, unless the dropout takes it
-        ++scan.stats.hits;
         if (dropout && core::uniform(rng, 0.0, 1.0) < cfg.dropout_probability) {
-          ++scan.stats.dropped;
+          ++dropped;
           continue;
         }
 
         // range noise; a noisy range outside the sensor's window is no return
-        const float range = rays.range[slot];
-        const float measured = range_sigma > 0.f ? range + range_sigma * normal() : range;
+        const float range = rays.range[first + ch];
+        const float measured = range_sigma > 0.f ? range + range_sigma * draw() : range;
         if (measured < min_range || measured > max_range) {
-          ++scan.stats.out_of_range;
+          ++out_of_range;
           continue;
         }
-        float intensity = rays.intensity[slot];
-        if (intensity_sigma > 0.f) intensity += intensity_sigma * normal();
+        float intensity = rays.intensity[first + ch];
+        if (intensity_sigma > 0.f) intensity += intensity_sigma * draw();
 
         // the point in the sensor frame of its column
-        const Impl::Channel& beam = im.channels[ch];
-        const float horizontal = beam.cos_elevation * measured;
-        scan.cloud.points.push_back({horizontal * im.column_cos[c], horizontal * im.column_sin[c],
-                                     beam.sin_elevation * measured,
-                                     std::clamp(intensity, 0.f, 255.f), static_cast<uint16_t>(ch),
-                                     time_offset_s});
-        scan.labels.cone_id.push_back(label);
+        const float horizontal = im.channel_cos[ch] * measured;
+        *point++ = {horizontal * column_cos,       horizontal * column_sin,
+                    im.channel_sin[ch] * measured, std::clamp(intensity, 0.f, 255.f),
+                    static_cast<uint16_t>(ch),     time_offset_s};
+        *point_label++ = label;
       }
     }
+    draw.finish();
+    scan.stats.dropped += dropped;
+    scan.stats.out_of_range += out_of_range;
+
+    // the chunk's points join the scan
+    const size_t kept = static_cast<size_t>(point - rays.points.data());
+    scan.cloud.points.insert(scan.cloud.points.end(), rays.points.begin(),
+                             rays.points.begin() + kept);
+    scan.labels.cone_id.insert(scan.labels.cone_id.end(), rays.point_label.begin(),
+                               rays.point_label.begin() + kept);
   }
 }
 
