@@ -16,6 +16,7 @@
 #include <limits>
 #include <numbers>
 #include <numeric>
+#include <span>
 #include <sstream>
 #include <stdexcept>
 #include <unordered_map>
@@ -120,22 +121,106 @@ class RangeWindow {
   double lo_, hi_, inner_lo_squared_, inner_hi_squared_;
 };
 
-// least-squares plane z = a x + b y + c through the points within `tolerance` of `plane`
+// The de-skew of the points fired at one time (a column): the vehicle at the sweep end seen from
+// the vehicle at the firing, and the cosine and sine of its yaw.
+struct ColumnMotion {
+  int first_index = 0;  // the column's first point within the range window
+  core::Pose2 back;
+  double cos_yaw = 1.0, sin_yaw = 0.0;
+};
+
+// The columns of a sweep in firing order: the caller adds one at each change of the firing time
+// among the points within the range window, as it meets them in firing order.
+class SweepColumns {
+ public:
+  SweepColumns(const SweepMotion& motion, double sweep_period_s, int points)
+      : motion_(motion), sweep_period_s_(sweep_period_s) {
+    columns_.reserve(static_cast<size_t>(std::min(points, 4096)));
+  }
+
+  // a column starting at point i (within the range window), fired at tau_s
+  void add(int i, float tau_s) {
+    ColumnMotion m;
+    m.first_index = i;
+    m.back = arc_motion(motion_, sweep_period_s_ - tau_s);
+    m.cos_yaw = std::cos(m.back.yaw);
+    m.sin_yaw = std::sin(m.back.yaw);
+    columns_.push_back(m);
+  }
+  // the column of point i (within the range window) given that of an earlier point, from 0 on
+  int column_of(int i, int earlier) const {
+    while (earlier + 1 < size() && columns_[earlier + 1].first_index <= i) ++earlier;
+    return earlier;
+  }
+  // the points of a column: indices from its first to the next column's first (or `points`)
+  int end_of(int column, int points) const {
+    return column + 1 < size() ? columns_[column + 1].first_index : points;
+  }
+  const ColumnMotion& operator[](int column) const { return columns_[column]; }
+  int size() const { return static_cast<int>(columns_.size()); }
+
+ private:
+  SweepMotion motion_;
+  double sweep_period_s_;
+  std::vector<ColumnMotion> columns_;
+};
+
+// A point in the vehicle frame at the sweep end: the mount's transform, then (with de-skew) the
+// column's motion undone, back.inverse_transform(v.head<2>()) with the column's cosine and sine.
+Vector3d to_vehicle(const core::Pose3& mount, const core::LidarPoint& p,
+                    const ColumnMotion* column) {
+  const Vector3d v = mount.transform(Vector3d(p.x, p.y, p.z));
+  if (column == nullptr) return v;
+  const double dx = v.x() - column->back.x, dy = v.y() - column->back.y;
+  return Vector3d(column->cos_yaw * dx + column->sin_yaw * dy,
+                  -column->sin_yaw * dx + column->cos_yaw * dy, v.z());
+}
+
+// Sorting of the points in the sensor frame, without moving them: a linear function of a
+// point's sensor coordinates, n . p + d, equal up to rounding (relative 1e-15 of the terms,
+// for |x|, |y| within the range window and |z| up to kMaxZM) to a value that to_vehicle() and
+// the plane give more slowly. Values farther than a margin (1e6 times the rounding) from the
+// limits decide; the others are left to the exact value.
+struct SensorFrameTest {
+  static constexpr double kMaxZM = 1000.0;
+
+  SensorFrameTest(const Vector3d& normal, double offset, double lo_limit, double hi_limit,
+                  double margin)
+      : nx(normal.x()),
+        ny(normal.y()),
+        nz(normal.z()),
+        d(offset),
+        lo(lo_limit - margin),
+        hi(hi_limit + margin),
+        inner_lo(lo_limit + margin),
+        inner_hi(hi_limit - margin) {}
+
+  double value(double x, double y, double z) const { return nx * x + ny * y + nz * z + d; }
+
+  double nx, ny, nz, d;
+  double lo, hi;              // values outside are surely outside the limits
+  double inner_lo, inner_hi;  // values inside are surely inside
+};
+
+// least-squares plane z = a x + b y + c through the points within `tolerance` of `plane`: the
+// normal equations summed term by term (the products each entry of sum (x, y, 1)^T (x, y, 1)
+// and sum (x, y, 1)^T z takes, in the points' order)
 bool fit_plane(const std::vector<Vector3d>& points, double tolerance, GroundPlane& plane) {
-  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-  Vector3d atb = Vector3d::Zero();
-  int used = 0;
+  double xx = 0.0, xy = 0.0, yy = 0.0, sx = 0.0, sy = 0.0, count = 0.0;
+  double xz = 0.0, yz = 0.0, sz = 0.0;
   const HeightBand band(plane, -tolerance, tolerance);
   double h = 0.0;
   for (const Vector3d& p : points) {
     if (!band.contains(p, h)) continue;
-    const Vector3d row(p.x(), p.y(), 1.0);
-    ata += row * row.transpose();
-    atb += row * p.z();
-    ++used;
+    const double x = p.x(), y = p.y(), z = p.z();
+    xx += x * x, xy += x * y, yy += y * y;
+    sx += x, sy += y, count += 1.0;
+    xz += x * z, yz += y * z, sz += z;
   }
-  if (used < 20) return false;
-  const Vector3d x = ata.ldlt().solve(atb);
+  if (count < 20.0) return false;
+  Eigen::Matrix3d ata;
+  ata << xx, xy, sx, xy, yy, sy, sx, sy, count;
+  const Vector3d x = ata.ldlt().solve(Vector3d(xz, yz, sz));
   if (!x.allFinite()) return false;
   plane = {x(0), x(1), x(2)};
   return true;
@@ -150,10 +235,31 @@ int find_root(std::vector<int>& parent, int i) {
   return i;
 }
 
+// Clusters as one array of point indices, cluster after cluster.
+struct Clusters {
+  std::vector<int> members;
+  std::vector<int> offsets{0};  // cluster k is members[offsets[k], offsets[k + 1])
+
+  int size() const { return static_cast<int>(offsets.size()) - 1; }
+  std::span<const int> operator[](int k) const {
+    return {members.data() + offsets[k], members.data() + offsets[k + 1]};
+  }
+};
+
+// a stable sort of items by a small integer key in [0, range): counting sort
+void counting_sort(std::vector<std::pair<int64_t, int>>& items, const std::vector<int>& key,
+                   int range, std::vector<std::pair<int64_t, int>>& out) {
+  std::vector<int> start(static_cast<size_t>(range) + 1, 0);
+  for (const auto& item : items) ++start[key[item.second] + 1];
+  for (int k = 0; k < range; ++k) start[k + 1] += start[k];
+  out.resize(items.size());
+  for (const auto& item : items) out[start[key[item.second]]++] = item;
+  items.swap(out);
+}
+
 // clusters of the raised points: points whose feet are within `distance` are linked; clusters
 // come out ordered by their first point (the firing order), points in firing order
-std::vector<std::vector<int>> euclidean_clusters(const std::vector<RaisedPoint>& points,
-                                                 double distance) {
+Clusters euclidean_clusters(const std::vector<RaisedPoint>& points, double distance) {
   // a grid of cells small enough that any two points of one cell are within `distance` (side
   // distance / sqrt 2): a cell's points belong together, and two points within `distance` lie
   // at most two cells apart on each axis
@@ -165,12 +271,32 @@ std::vector<std::vector<int>> euclidean_clusters(const std::vector<RaisedPoint>&
   };
   constexpr int64_t kRow = int64_t{1} << 32;
   auto key_of = [](int64_t cx, int64_t cy) { return cx * kRow + cy; };
+  // the points by cell key (cx, then cy), then index: two stable counting sorts, on cy then on
+  // cx, when the cells span a small grid (else a comparison sort)
   std::vector<std::pair<int64_t, int>> sorted(static_cast<size_t>(n));
+  std::vector<int> cx(static_cast<size_t>(n)), cy(static_cast<size_t>(n));
+  int64_t lo_x = std::numeric_limits<int64_t>::max(), hi_x = std::numeric_limits<int64_t>::min();
+  int64_t lo_y = lo_x, hi_y = hi_x;
   for (int i = 0; i < n; ++i) {
     const auto c = cell_of(points[i].foot);
     sorted[static_cast<size_t>(i)] = {key_of(c[0], c[1]), i};
+    lo_x = std::min(lo_x, c[0]), hi_x = std::max(hi_x, c[0]);
+    lo_y = std::min(lo_y, c[1]), hi_y = std::max(hi_y, c[1]);
   }
-  std::sort(sorted.begin(), sorted.end());
+  constexpr int64_t kMaxGridCells = 1 << 16;
+  if (n > 0 && hi_x - lo_x < kMaxGridCells && hi_y - lo_y < kMaxGridCells && lo_x > -kRow / 4 &&
+      hi_x < kRow / 4 && lo_y > -kRow / 4 && hi_y < kRow / 4) {
+    for (int i = 0; i < n; ++i) {
+      const auto c = cell_of(points[i].foot);
+      cx[static_cast<size_t>(i)] = static_cast<int>(c[0] - lo_x);
+      cy[static_cast<size_t>(i)] = static_cast<int>(c[1] - lo_y);
+    }
+    std::vector<std::pair<int64_t, int>> buffer;
+    counting_sort(sorted, cy, static_cast<int>(hi_y - lo_y + 1), buffer);
+    counting_sort(sorted, cx, static_cast<int>(hi_x - lo_x + 1), buffer);
+  } else {
+    std::sort(sorted.begin(), sorted.end());
+  }
 
   // the occupied cells: runs of the sorted points
   struct Cell {
@@ -178,6 +304,7 @@ std::vector<std::vector<int>> euclidean_clusters(const std::vector<RaisedPoint>&
     size_t begin, end;
   };
   std::vector<Cell> cells;
+  cells.reserve(sorted.size());
   for (size_t k = 0; k < sorted.size(); ++k) {
     if (cells.empty() || cells.back().key != sorted[k].first) {
       const auto c = cell_of(points[sorted[k].second].foot);
@@ -198,39 +325,49 @@ std::vector<std::vector<int>> euclidean_clusters(const std::vector<RaisedPoint>&
     for (size_t k = cell.begin + 1; k < cell.end; ++k)
       join(sorted[cell.begin].second, sorted[k].second);
   const double distance2 = distance * distance;
+  // the cells (cx + dx, cy - 2 .. cy + 2) for dx = 0, 1, 2 are runs of the sorted cells whose
+  // starts only move forward as the cells are visited in order: one cursor per dx
+  std::array<size_t, 3> cursor{0, 0, 0};
   for (const Cell& cell : cells) {
-    for (int64_t dx = 0; dx <= 2; ++dx)
-      for (int64_t dy = -2; dy <= 2; ++dy) {
-        if (dx == 0 && dy <= 0) continue;  // each pair of cells once
-        const int64_t key = key_of(cell.cx + dx, cell.cy + dy);
-        const auto other = std::lower_bound(
-            cells.begin(), cells.end(), key,
-            [](const Cell& c, int64_t k) { return c.key < k; });
-        if (other == cells.end() || other->key != key) continue;
-        const int a0 = sorted[cell.begin].second, b0 = sorted[other->begin].second;
+    for (int64_t dx = 0; dx <= 2; ++dx) {
+      const int64_t first = key_of(cell.cx + dx, cell.cy - 2),
+                    last = key_of(cell.cx + dx, cell.cy + 2);
+      size_t& k = cursor[static_cast<size_t>(dx)];
+      while (k < cells.size() && cells[k].key < first) ++k;
+      for (size_t o = k; o < cells.size() && cells[o].key <= last; ++o) {
+        const Cell& other = cells[o];
+        if (dx == 0 && other.cy <= cell.cy) continue;  // each pair of cells once
+        const int a0 = sorted[cell.begin].second, b0 = sorted[other.begin].second;
         if (find_root(parent, a0) == find_root(parent, b0)) continue;
         bool joined = false;
         for (size_t i = cell.begin; i < cell.end && !joined; ++i)
-          for (size_t j = other->begin; j < other->end && !joined; ++j)
+          for (size_t j = other.begin; j < other.end && !joined; ++j)
             if ((points[sorted[i].second].foot - points[sorted[j].second].foot).squaredNorm() <=
                 distance2) {
               join(a0, b0);
               joined = true;
             }
       }
+    }
   }
 
   // gather: roots are the smallest index of their cluster, so this order is deterministic
-  std::vector<int> cluster_of(static_cast<size_t>(n), -1);
-  std::vector<std::vector<int>> clusters;
+  Clusters clusters;
+  std::vector<int>& cluster_of = cx;  // reused: the cluster of each root, or -1
+  std::fill(cluster_of.begin(), cluster_of.end(), -1);
+  std::vector<int>& count = cy;  // reused: points per cluster
+  int cluster_count = 0;
   for (int i = 0; i < n; ++i) {
     const int root = find_root(parent, i);
-    if (cluster_of[root] < 0) {
-      cluster_of[root] = static_cast<int>(clusters.size());
-      clusters.emplace_back();
-    }
-    clusters[cluster_of[root]].push_back(i);
+    if (cluster_of[root] < 0) count[static_cast<size_t>(cluster_of[root] = cluster_count++)] = 0;
+    ++count[static_cast<size_t>(cluster_of[root])];
   }
+  clusters.offsets.resize(static_cast<size_t>(cluster_count) + 1);
+  for (int k = 0; k < cluster_count; ++k) clusters.offsets[k + 1] = clusters.offsets[k] + count[k];
+  clusters.members.resize(static_cast<size_t>(n));
+  std::vector<int>& next = count;  // reused: the next free slot of each cluster
+  for (int k = 0; k < cluster_count; ++k) next[k] = clusters.offsets[k];
+  for (int i = 0; i < n; ++i) clusters.members[next[cluster_of[find_root(parent, i)]]++] = i;
   return clusters;
 }
 
@@ -280,13 +417,17 @@ bool in_stripe(const core::ConeGeometry& g, double height_m) {
 // the centre of a cone (ground-projected) whose visible surface the points are on: least
 // squares of |q - c| - r(h) by Gauss-Newton, started one mean radius behind the centroid
 // along the line of sight; returns the start when the fit runs away
-Vector2d fit_centre(const std::vector<RaisedPoint>& points, const std::vector<int>& cluster,
-                    const core::ConeGeometry& shape, const Vector2d& sensor_xy) {
+Vector2d fit_centre(const std::vector<RaisedPoint>& points, std::span<const int> cluster,
+                    const core::ConeGeometry& shape, const Vector2d& sensor_xy,
+                    std::vector<double>& radius) {
+  // the body radius at each point's height, once
+  radius.clear();
+  for (const int i : cluster) radius.push_back(body_radius(shape, points[i].height_m));
   Vector2d centroid = Vector2d::Zero();
   double mean_radius = 0.0;
-  for (const int i : cluster) {
-    centroid += points[i].foot;
-    mean_radius += body_radius(shape, points[i].height_m);
+  for (size_t k = 0; k < cluster.size(); ++k) {
+    centroid += points[cluster[k]].foot;
+    mean_radius += radius[k];
   }
   centroid /= static_cast<double>(cluster.size());
   mean_radius /= static_cast<double>(cluster.size());
@@ -298,12 +439,12 @@ Vector2d fit_centre(const std::vector<RaisedPoint>& points, const std::vector<in
   for (int iteration = 0; iteration < 8; ++iteration) {
     Eigen::Matrix2d jtj = Eigen::Matrix2d::Identity() * 1e-3;
     Vector2d jtr = 1e-3 * (c - start);
-    for (const int i : cluster) {
-      const Vector2d d = points[i].foot - c;
+    for (size_t k = 0; k < cluster.size(); ++k) {
+      const Vector2d d = points[cluster[k]].foot - c;
       const double norm = d.norm();
       if (norm < 1e-6) continue;
       const Vector2d j = -d / norm;
-      const double r = norm - body_radius(shape, points[i].height_m);
+      const double r = norm - radius[k];
       jtj += j * j.transpose();
       jtr += j * r;
     }
@@ -320,7 +461,7 @@ Vector2d fit_centre(const std::vector<RaisedPoint>& points, const std::vector<in
 // column step (the edge columns fall anywhere within a step of the silhouette), with a
 // spread of about half a step plus the model error. Rings with one point say nothing.
 double width_log_likelihood(const LidarDetectorConfig& config,
-                            const std::vector<RaisedPoint>& points, const std::vector<int>& cluster,
+                            const std::vector<RaisedPoint>& points, std::span<const int> cluster,
                             const core::ConeGeometry& shape, const Vector2d& sensor_xy) {
   Vector2d centroid = Vector2d::Zero();
   for (const int i : cluster) centroid += points[i].foot;
@@ -365,20 +506,36 @@ struct PaintHypothesis {
 };
 
 // the classes a cluster may be, by its size: small, big or undecided
-std::vector<PaintHypothesis> hypotheses_for(const LidarDetectorConfig& c, bool may_be_small,
-                                            bool may_be_big) {
-  std::vector<PaintHypothesis> h;
+struct PaintHypotheses {
+  std::array<PaintHypothesis, 4> h;
+  size_t size = 0;
+};
+PaintHypotheses hypotheses_for(const LidarDetectorConfig& c, bool may_be_small, bool may_be_big) {
+  PaintHypotheses h;
   const core::ConeGeometry small = core::cone_geometry(ConeClass::kBlue);
   if (may_be_small) {
-    h.push_back({ConeClass::kBlue, small, c.reflectivity_blue, c.reflectivity_white});
-    h.push_back({ConeClass::kYellow, small, c.reflectivity_yellow, c.reflectivity_black});
-    h.push_back({ConeClass::kOrangeSmall, small, c.reflectivity_orange, c.reflectivity_white});
+    h.h[h.size++] = {ConeClass::kBlue, small, c.reflectivity_blue, c.reflectivity_white};
+    h.h[h.size++] = {ConeClass::kYellow, small, c.reflectivity_yellow, c.reflectivity_black};
+    h.h[h.size++] = {ConeClass::kOrangeSmall, small, c.reflectivity_orange, c.reflectivity_white};
   }
   if (may_be_big)
-    h.push_back({ConeClass::kOrangeBig, core::cone_geometry(ConeClass::kOrangeBig),
-                 c.reflectivity_orange, c.reflectivity_white});
+    h.h[h.size++] = {ConeClass::kOrangeBig, core::cone_geometry(ConeClass::kOrangeBig),
+                     c.reflectivity_orange, c.reflectivity_white};
   return h;
 }
+
+// buffers of classify_paint, kept over the clusters of a sweep
+struct PaintScratch {
+  struct Seen {
+    double measured, scale, p_other;
+    bool stripe_here, stripe_other;
+  };
+  struct Expected {
+    double measured, here, other, p_other;
+  };
+  std::vector<Seen> seen;
+  std::vector<Expected> used;
+};
 
 // The class whose paint pattern explains the intensities best. Each point's expected intensity
 // is 255 x reflectivity of the band at its height x cos(incidence) x range fall-off, with the
@@ -387,37 +544,34 @@ std::vector<PaintHypothesis> hypotheses_for(const LidarDetectorConfig& c, bool m
 // hypotheses are scored by their Gaussian log-likelihood; kUnknown when the best does not lead
 // the runner-up by colour_min_log_likelihood_ratio, or too few points are usable.
 ConeClass classify_paint(const LidarDetectorConfig& config, const std::vector<RaisedPoint>& points,
-                         const std::vector<int>& cluster, const Vector2d& centre,
-                         const Vector2d& sensor_xy,
-                         const std::vector<PaintHypothesis>& hypotheses) {
-  if (hypotheses.empty()) return ConeClass::kUnknown;
-  if (hypotheses.size() == 1) return hypotheses.front().cls;
+                         std::span<const int> cluster, const Vector2d& centre,
+                         const Vector2d& sensor_xy, const PaintHypotheses& hypotheses,
+                         PaintScratch& scratch) {
+  if (hypotheses.size == 0) return ConeClass::kUnknown;
+  if (hypotheses.size == 1) return hypotheses.h[0].cls;
   const Vector2d ray = (centre - sensor_xy).normalized();
   const Vector2d across(-ray.y(), ray.x());
 
   // mean log-likelihood per usable point of each hypothesis (shapes differ in the points they
   // can use), scaled below by the fewest usable points
-  std::vector<double> mean_log_likelihood;
+  std::array<double, 4> mean_log_likelihood{};
   size_t fewest_used = cluster.size();
   // the usable points of a shape, with the band each may be on and its expected intensity per
   // unit reflectivity; hypotheses of one shape (the small ones) share them
-  struct Seen {
-    double measured, scale, p_other;
-    bool stripe_here, stripe_other;
-  };
-  std::vector<Seen> seen;
+  using Seen = PaintScratch::Seen;
+  using Expected = PaintScratch::Expected;
+  std::vector<Seen>& seen = scratch.seen;
   const core::ConeBand* seen_shape = nullptr;
-  struct Expected {
-    double measured, here, other, p_other;
-  };
-  std::vector<Expected> used;
-  for (const PaintHypothesis& h : hypotheses) {
+  std::vector<Expected>& used = scratch.used;
+  for (size_t k = 0; k < hypotheses.size; ++k) {
+    const PaintHypothesis& h = hypotheses.h[k];
     if (h.shape.bands.data() != seen_shape) {
       seen_shape = h.shape.bands.data();
       seen.clear();
       const double taper =
           std::atan2(h.shape.bands.front().radius_bottom_m - h.shape.bands.back().radius_top_m,
                      h.shape.height_m - h.shape.plate_height_m);
+      const double cos_taper = std::cos(taper);
       for (const int i : cluster) {
         const RaisedPoint& p = points[i];
         if (p.height_m > h.shape.height_m + 0.02) continue;
@@ -426,7 +580,7 @@ ConeClass classify_paint(const LidarDetectorConfig& config, const std::vector<Ra
         if (std::abs(u) > 0.85) continue;
         const BandChance band = band_chance(h.shape, p.height_m, config.height_sigma_m);
         const double falloff = 1.0 / (1.0 + std::pow(p.range_m / config.intensity_falloff_m, 2));
-        const double scale = 255.0 * std::sqrt(1.0 - u * u) * std::cos(taper) * falloff;
+        const double scale = 255.0 * std::sqrt(1.0 - u * u) * cos_taper * falloff;
         seen.push_back({p.intensity, scale, band.p_other, band.stripe_here, band.stripe_other});
       }
     }
@@ -459,17 +613,17 @@ ConeClass classify_paint(const LidarDetectorConfig& config, const std::vector<Ra
       log_likelihood +=
           std::log((1.0 - e.p_other) * density(e.measured, e.here) + across_edge + 1e-300);
     }
-    mean_log_likelihood.push_back(log_likelihood / static_cast<double>(used.size()));
+    mean_log_likelihood[k] = log_likelihood / static_cast<double>(used.size());
     fewest_used = std::min(fewest_used, used.size());
   }
   double best = -std::numeric_limits<double>::infinity(), second = best;
   ConeClass best_cls = ConeClass::kUnknown;
-  for (size_t k = 0; k < hypotheses.size(); ++k) {
+  for (size_t k = 0; k < hypotheses.size; ++k) {
     const double log_likelihood = mean_log_likelihood[k] * static_cast<double>(fewest_used);
     if (log_likelihood > best) {
       second = best;
       best = log_likelihood;
-      best_cls = hypotheses[k].cls;
+      best_cls = hypotheses.h[k].cls;
     } else if (log_likelihood > second) {
       second = log_likelihood;
     }
@@ -581,47 +735,80 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
 
   // de-skew: a point fired at tau is in the vehicle frame of tau; the vehicle at the sweep end
   // is arc_motion(T - tau) ahead of it, so the point moves by that motion's inverse (columns
-  // share tau, so the motion is computed once per column)
-  std::vector<Vector3d> vehicle(static_cast<size_t>(n));
-  // within the sensor's horizontal range window (the others are skipped)
-  std::vector<uint8_t> in_range(static_cast<size_t>(n), 0);
+  // share tau, so the motion is computed once per column). Only the points within the sensor's
+  // horizontal range window count. Moving every point would cost more than the rest of the
+  // detector: the points are sorted in the sensor frame instead (SensorFrameTest), and only
+  // those the fits use and those near a limit are moved (to_vehicle)
   const RangeWindow window(c.min_range_m, c.max_range_m);
-  float last_tau = std::numeric_limits<float>::quiet_NaN();
-  core::Pose2 back;
-  double back_cos = 1.0, back_sin = 0.0;
-  for (int i = 0; i < n; ++i) {
-    const core::LidarPoint& p = cloud.points[i];
-    if (!window.contains(p)) continue;
-    in_range[i] = 1;
-    const Vector3d v = sensor_in_vehicle_.transform(Vector3d(p.x, p.y, p.z));
-    if (!c.deskew) {
-      vehicle[i] = v;
-      continue;
+  const core::Pose3& mount = sensor_in_vehicle_;
+  const Eigen::Matrix3d rotation = mount.orientation.toRotationMatrix();
+  const Vector3d& t = mount.position;
+  // bound of the terms' magnitudes, for the margins of the sensor-frame tests; the rotation
+  // matrix and the quaternion agree only for a unit quaternion (else every point is moved)
+  const double magnitude_m = t.cwiseAbs().sum() + 2.0 * c.max_range_m + SensorFrameTest::kMaxZM +
+                             std::abs(motion.speed_mps) * c.sweep_period_s + 1.0;
+  const double relative_margin = std::abs(mount.orientation.squaredNorm() - 1.0) < 1e-12
+                                     ? 1e-9
+                                     : std::numeric_limits<double>::infinity();
+  SweepColumns columns(motion, c.sweep_period_s, n);
+  auto column_motion = [&columns, &c](int column) -> const ColumnMotion* {
+    return c.deskew ? &columns[column] : nullptr;
+  };
+
+  // the points within the range window: `tame` ones (|z| up to kMaxZM) are sorted in the sensor
+  // frame, `wild` ones always moved; ground candidates are those with |z| < band in the vehicle
+  // frame (the de-skew keeps z)
+  enum PointFlag : uint8_t { kTame = 1, kWild = 2, kCandidate = 4 };
+  std::vector<uint8_t> flags(static_cast<size_t>(n), 0);
+  size_t candidate_count = 0;
+  {
+    // |z| within the band's margin of its limit: the exact z decides
+    const SensorFrameTest band(rotation.row(2).transpose(), t.z(), -c.ground_candidate_band_m,
+                               c.ground_candidate_band_m, relative_margin * magnitude_m);
+    const double sure_in = band.inner_hi, sure_out = band.hi;
+    const double band_m = c.ground_candidate_band_m;
+    const bool deskew = c.deskew;
+    float last_tau = std::numeric_limits<float>::quiet_NaN();
+    for (int i = 0; i < n; ++i) {
+      const core::LidarPoint& p = cloud.points[i];
+      if (!window.contains(p)) continue;
+      if (deskew && p.time_offset_s != last_tau) {
+        last_tau = p.time_offset_s;
+        columns.add(i, p.time_offset_s);
+      }
+      const double z = std::abs(band.value(p.x, p.y, p.z));
+      uint8_t flag = kTame | kCandidate;
+      if (!(z < sure_in && std::abs(p.z) <= SensorFrameTest::kMaxZM)) {
+        flag = std::abs(p.z) <= SensorFrameTest::kMaxZM ? kTame : kWild;
+        if ((flag == kWild || !(z > sure_out)) &&
+            std::abs(mount.transform(Vector3d(p.x, p.y, p.z)).z()) < band_m)
+          flag |= kCandidate;
+      }
+      if (flag & kCandidate) ++candidate_count;
+      flags[static_cast<size_t>(i)] = flag;
     }
-    if (p.time_offset_s != last_tau) {
-      last_tau = p.time_offset_s;
-      back = arc_motion(motion, c.sweep_period_s - p.time_offset_s);
-      back_cos = std::cos(back.yaw);
-      back_sin = std::sin(back.yaw);
-    }
-    // back.inverse_transform(v.head<2>()), with the column's cosine and sine
-    const double dx = v.x() - back.x, dy = v.y() - back.y;
-    vehicle[i] = Vector3d(back_cos * dx + back_sin * dy, -back_sin * dx + back_cos * dy, v.z());
   }
 
-  // ground: candidates near z = 0 of the vehicle frame, then two refits on the inliers. Three
-  // parameters need no more than a few thousand points: every k-th candidate is kept
-  std::vector<Vector3d> candidates;
-  candidates.reserve(static_cast<size_t>(n));
-  for (int i = 0; i < n; ++i)
-    if (in_range[i] && std::abs(vehicle[i].z()) < c.ground_candidate_band_m)
-      candidates.push_back(vehicle[i]);
+  // ground: the candidates, then two refits on the inliers. Three parameters need no more than
+  // a few thousand points: every k-th candidate is used
   constexpr size_t kGroundFitPoints = 4000;
-  if (candidates.size() > 2 * kGroundFitPoints) {
-    const size_t stride = candidates.size() / kGroundFitPoints;
-    size_t kept = 0;
-    for (size_t i = 0; i < candidates.size(); i += stride) candidates[kept++] = candidates[i];
-    candidates.resize(kept);
+  const size_t stride =
+      candidate_count > 2 * kGroundFitPoints ? candidate_count / kGroundFitPoints : 1;
+  std::vector<Vector3d> candidates;
+  candidates.reserve(candidate_count / stride + 1);
+  {
+    size_t skip = 0;  // candidates to pass over before the next one used
+    int column = 0;
+    for (int i = 0; i < n; ++i) {
+      if (!(flags[static_cast<size_t>(i)] & kCandidate)) continue;
+      if (skip > 0) {
+        --skip;
+        continue;
+      }
+      skip = stride - 1;
+      if (c.deskew) column = columns.column_of(i, column);
+      candidates.push_back(to_vehicle(mount, cloud.points[i], column_motion(column)));
+    }
   }
   GroundPlane ground;
   if (fit_plane(candidates, c.ground_candidate_band_m, ground)) {
@@ -632,21 +819,55 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
   }
   const Vector3d up = ground.normal();
 
-  // raised points: heights along the plane's normal, feet on the plane
+  // the height band of the raised points as a sensor-frame test per column: the height of the
+  // moved point is (z - A x - B y + A bx + B by - c) / |(a, b, -1)| with A = a cos - b sin and
+  // B = a sin + b cos of the column's yaw, (x, y, z) = R p + t and (bx, by) its back motion
+  const double inverse_length = 1.0 / std::sqrt(ground.a * ground.a + ground.b * ground.b + 1.0);
+  auto height_test = [&](const ColumnMotion* m) {
+    const double cos_yaw = m ? m->cos_yaw : 1.0, sin_yaw = m ? m->sin_yaw : 0.0;
+    const double bx = m ? m->back.x : 0.0, by = m ? m->back.y : 0.0;
+    const double a = ground.a * cos_yaw - ground.b * sin_yaw;
+    const double b = ground.a * sin_yaw + ground.b * cos_yaw;
+    const Vector3d normal =
+        (rotation.row(2) - a * rotation.row(0) - b * rotation.row(1)).transpose() * inverse_length;
+    const double offset =
+        (t.z() - a * t.x() - b * t.y() + a * bx + b * by - ground.c) * inverse_length;
+    const double slopes = std::abs(ground.a) + std::abs(ground.b) + std::abs(a) + std::abs(b);
+    const double margin = relative_margin * (1.0 + slopes) *
+                          (magnitude_m + std::abs(bx) + std::abs(by) + std::abs(ground.c));
+    return SensorFrameTest(normal, offset, c.min_point_height_m, c.max_point_height_m, margin);
+  };
+
+  // raised points: heights along the plane's normal, feet on the plane, in firing order
   const Vector3d sensor = sensor_in_vehicle_.position;
   const Vector2d sensor_xy = (sensor - ground.height(sensor) * up).head<2>();
   std::vector<RaisedPoint> raised;
+  raised.reserve(static_cast<size_t>(n / 32));
   const HeightBand raised_band(ground, c.min_point_height_m, c.max_point_height_m);
-  for (int i = 0; i < n; ++i) {
-    if (!in_range[i]) continue;
-    double h = 0.0;
-    if (!raised_band.contains(vehicle[i], h)) continue;
-    // the range from the sensor, only for the points kept
-    const double horizontal = horizontal_range(cloud.points[i]);
-    const double z = cloud.points[i].z;
-    const double range = std::sqrt(horizontal * horizontal + z * z);
-    raised.push_back({i, (vehicle[i] - h * up).head<2>(), h, range,
-                      static_cast<double>(cloud.points[i].intensity), cloud.points[i].ring});
+  const int column_count = c.deskew ? columns.size() : 1;
+  for (int column = 0; column < column_count; ++column) {
+    const SensorFrameTest band = height_test(column_motion(column));
+    const double nx = band.nx, ny = band.ny, nz = band.nz, d = band.d;
+    const double lo = band.lo, hi = band.hi;
+    const int end = c.deskew ? columns.end_of(column, n) : n;
+    for (int i = c.deskew ? columns[column].first_index : 0; i < end; ++i) {
+      const uint8_t flag = flags[static_cast<size_t>(i)];
+      if (flag == 0) continue;
+      const core::LidarPoint& p = cloud.points[i];
+      if (flag & kTame) {
+        const double v = nx * p.x + ny * p.y + nz * p.z + d;
+        if (v < lo || v > hi) continue;
+      }
+      const Vector3d vehicle = to_vehicle(mount, p, column_motion(column));
+      double h = 0.0;
+      if (!raised_band.contains(vehicle, h)) continue;
+      // the range from the sensor, only for the points kept
+      const double horizontal = horizontal_range(p);
+      const double z = p.z;
+      const double range = std::sqrt(horizontal * horizontal + z * z);
+      raised.push_back(
+          {i, (vehicle - h * up).head<2>(), h, range, static_cast<double>(p.intensity), p.ring});
+    }
   }
   out.non_ground_points = static_cast<int>(raised.size());
 
@@ -654,7 +875,13 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
   const core::ConeGeometry small = core::cone_geometry(ConeClass::kBlue);
   const core::ConeGeometry big = core::cone_geometry(ConeClass::kOrangeBig);
   const double ring_step = std::tan(c.ring_spacing_deg * kDeg);
-  for (const std::vector<int>& cluster : euclidean_clusters(raised, c.cluster_distance_m)) {
+  const Clusters clusters = euclidean_clusters(raised, c.cluster_distance_m);
+  out.cones.reserve(static_cast<size_t>(clusters.size()));
+  // buffers kept over the clusters
+  std::vector<double> radius;
+  PaintScratch paint;
+  for (int k = 0; k < clusters.size(); ++k) {
+    const std::span<const int> cluster = clusters[k];
     // size: point count, extent on the ground, top above the ground
     Vector2d lo = Vector2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
     double top = 0.0, top_range = 0.0;
@@ -695,11 +922,11 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
 
     // centre on the small shape unless surely big; class from the paint; refit if it is big
     const bool fitted_big = !may_be_small;
-    Vector2d centre = fit_centre(raised, cluster, fitted_big ? big : small, sensor_xy);
+    Vector2d centre = fit_centre(raised, cluster, fitted_big ? big : small, sensor_xy, radius);
     const ConeClass cls = classify_paint(c, raised, cluster, centre, sensor_xy,
-                                         hypotheses_for(c, may_be_small, may_be_big));
+                                         hypotheses_for(c, may_be_small, may_be_big), paint);
     if (cls == ConeClass::kOrangeBig && !fitted_big)
-      centre = fit_centre(raised, cluster, big, sensor_xy);
+      centre = fit_centre(raised, cluster, big, sensor_xy, radius);
 
     // the cone: its base centre on the plane, in the vehicle and sensor frames
     const Vector3d base(centre.x(), centre.y(),
