@@ -141,9 +141,13 @@ struct ColumnMotion {
 // among the points within the range window, as it meets them in firing order.
 class SweepColumns {
  public:
+  // room for a 0.2-degree sweep (1800 columns; more grow the buffer), under malloc's 128 KiB
+  // threshold for handing memory back to the kernel
+  static constexpr int kTypicalColumns = 2048;
+
   SweepColumns(const SweepMotion& motion, double sweep_period_s, int points)
       : motion_(motion), sweep_period_s_(sweep_period_s) {
-    columns_.reserve(static_cast<size_t>(std::min(points, 4096)));
+    columns_.reserve(static_cast<size_t>(std::min(points, kTypicalColumns)));
   }
 
   // a column starting at point i (within the range window), fired at tau_s
