@@ -11,10 +11,8 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <array>
-#include <bit>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 #include <limits>
 #include <numbers>
 #include <numeric>
@@ -22,10 +20,6 @@
 #include <sstream>
 #include <stdexcept>
 #include <unordered_map>
-
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 
 #include "core/cone_geometry.hpp"
 
@@ -69,24 +63,22 @@ class HeightBand {
         length_(std::sqrt(plane.a * plane.a + plane.b * plane.b + 1.0)),
         inverse_(1.0 / length_),
         lo_(lo),
-        hi_(hi),
-        outer_lo_(lo - kMarginM),
-        outer_hi_(hi + kMarginM) {}
+        hi_(hi) {}
 
   // true when the point's height is within the band; its height in h then
   bool contains(const Vector3d& p, double& h) const {
+    // the product is within 1e-15 relative of the quotient: a margin of 1e-9 m is safe
+    constexpr double kMarginM = 1e-9;
     const double rise = p.z() - (plane_.a * p.x() + plane_.b * p.y() + plane_.c);
     const double approx = rise * inverse_;
-    if (approx < outer_lo_ || approx > outer_hi_) return false;
+    if (approx < lo_ - kMarginM || approx > hi_ + kMarginM) return false;
     h = rise / length_;
     return h >= lo_ && h <= hi_;
   }
 
  private:
-  // the product is within 1e-15 relative of the quotient: a margin of 1e-9 m is safe
-  static constexpr double kMarginM = 1e-9;
   GroundPlane plane_;
-  double length_, inverse_, lo_, hi_, outer_lo_, outer_hi_;
+  double length_, inverse_, lo_, hi_;
 };
 
 // the pose of the vehicle at the sweep end seen from the vehicle at dt earlier, for constant
@@ -213,97 +205,6 @@ struct SensorFrameTest {
   double lo, hi;              // values outside are surely outside the limits
   double inner_lo, inner_hi;  // values inside are surely inside
 };
-
-// The same sorting, four consecutive points at once in single precision (their coordinates are
-// floats): margins of 1e-5 of the terms' magnitudes cover the rounding (at most ~1e-6 of them,
-// for |z| up to kMaxZM), and points with a larger |z| are never sure.
-struct FourPointTest {
-  static constexpr double kMaxZM = 50.0;
-  static constexpr double kRelativeMargin = 1e-5;
-
-  // the linear test n . p + d against [lo, hi] with the given margin (sure_in: strictly inside)
-  FourPointTest(const SensorFrameTest& t, double margin)
-      : nx(static_cast<float>(t.nx)),
-        ny(static_cast<float>(t.ny)),
-        nz(static_cast<float>(t.nz)),
-        d(static_cast<float>(t.d)),
-        lo(static_cast<float>(t.lo - margin)),
-        hi(static_cast<float>(t.hi + margin)),
-        inner_lo(static_cast<float>(t.inner_lo + margin)),
-        inner_hi(static_cast<float>(t.inner_hi - margin)) {}
-
-  // bit k set: point p[k] surely outside [lo, hi] (sure_out) or inside (lo, hi) (sure_in)
-  void sort(const core::LidarPoint* p, unsigned& sure_out, unsigned& sure_in) const {
-#if defined(__SSE2__)
-    __m128 x = _mm_loadu_ps(&p[0].x), y = _mm_loadu_ps(&p[1].x), z = _mm_loadu_ps(&p[2].x);
-    __m128 w = _mm_loadu_ps(&p[3].x);
-    _MM_TRANSPOSE4_PS(x, y, z, w);
-    const __m128 v =
-        _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(nx), x), _mm_mul_ps(_mm_set1_ps(ny), y)),
-                   _mm_add_ps(_mm_mul_ps(_mm_set1_ps(nz), z), _mm_set1_ps(d)));
-    const __m128 tame =
-        _mm_cmple_ps(_mm_andnot_ps(_mm_set1_ps(-0.0f), z), _mm_set1_ps(static_cast<float>(kMaxZM)));
-    const __m128 out =
-        _mm_or_ps(_mm_cmplt_ps(v, _mm_set1_ps(lo)), _mm_cmpgt_ps(v, _mm_set1_ps(hi)));
-    const __m128 in =
-        _mm_and_ps(_mm_cmpgt_ps(v, _mm_set1_ps(inner_lo)), _mm_cmplt_ps(v, _mm_set1_ps(inner_hi)));
-    sure_out = static_cast<unsigned>(_mm_movemask_ps(_mm_and_ps(out, tame)));
-    sure_in = static_cast<unsigned>(_mm_movemask_ps(_mm_and_ps(in, tame)));
-#else
-    sure_out = sure_in = 0;
-    for (unsigned k = 0; k < 4; ++k) {
-      const float v = nx * p[k].x + ny * p[k].y + nz * p[k].z + d;
-      const bool tame = std::abs(p[k].z) <= static_cast<float>(kMaxZM);
-      if (tame && (v < lo || v > hi)) sure_out |= 1u << k;
-      if (tame && v > inner_lo && v < inner_hi) sure_in |= 1u << k;
-    }
-#endif
-  }
-
-  float nx, ny, nz, d, lo, hi, inner_lo, inner_hi;
-};
-
-// Which of four consecutive points are surely within or surely outside a horizontal range
-// window [lo, hi] (squared ranges in single precision, 1e-4 from the limits; the others are
-// left to RangeWindow).
-struct FourPointWindow {
-  FourPointWindow(double lo, double hi)
-      : in_lo(static_cast<float>(lo * lo * (1.0 + 1e-4))),
-        in_hi(static_cast<float>(hi * hi * (1.0 - 1e-4))),
-        out_lo(static_cast<float>(lo * lo * (1.0 - 1e-4))),
-        out_hi(static_cast<float>(hi * hi * (1.0 + 1e-4))) {}
-
-  void sort(const core::LidarPoint* p, unsigned& sure_out, unsigned& sure_in) const {
-#if defined(__SSE2__)
-    __m128 x = _mm_loadu_ps(&p[0].x), y = _mm_loadu_ps(&p[1].x), z = _mm_loadu_ps(&p[2].x);
-    __m128 w = _mm_loadu_ps(&p[3].x);
-    _MM_TRANSPOSE4_PS(x, y, z, w);
-    const __m128 squared = _mm_add_ps(_mm_mul_ps(x, x), _mm_mul_ps(y, y));
-    sure_in = static_cast<unsigned>(_mm_movemask_ps(_mm_and_ps(
-        _mm_cmpgt_ps(squared, _mm_set1_ps(in_lo)), _mm_cmplt_ps(squared, _mm_set1_ps(in_hi)))));
-    sure_out = static_cast<unsigned>(_mm_movemask_ps(_mm_or_ps(
-        _mm_cmplt_ps(squared, _mm_set1_ps(out_lo)), _mm_cmpgt_ps(squared, _mm_set1_ps(out_hi)))));
-#else
-    sure_out = sure_in = 0;
-    for (unsigned k = 0; k < 4; ++k) {
-      const float squared = p[k].x * p[k].x + p[k].y * p[k].y;
-      if (squared > in_lo && squared < in_hi) sure_in |= 1u << k;
-      if (squared < out_lo || squared > out_hi) sure_out |= 1u << k;
-    }
-#endif
-  }
-
-  float in_lo, in_hi, out_lo, out_hi;
-};
-
-// the low bit of each of four bytes as four bits, and back (no carries: the partial products
-// land on distinct bits)
-unsigned gather_bits(uint32_t bytes) {
-  return ((bytes * 0x01020408u) >> 24) & 0xFu;
-}
-uint32_t spread_bits(unsigned bits) {
-  return (bits * 0x00204081u) & 0x01010101u;
-}
 
 // least-squares plane z = a x + b y + c through the points within `tolerance` of `plane`: the
 // normal equations summed term by term (the products each entry of sum (x, y, 1)^T (x, y, 1)
@@ -853,10 +754,6 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
   const double relative_margin = std::abs(mount.orientation.squaredNorm() - 1.0) < 1e-12
                                      ? 1e-9
                                      : std::numeric_limits<double>::infinity();
-  const bool float_tests = relative_margin < 1.0;
-  const double float_magnitude_m = t.cwiseAbs().sum() + 2.0 * c.max_range_m +
-                                   FourPointTest::kMaxZM +
-                                   std::abs(motion.speed_mps) * c.sweep_period_s + 1.0;
   SweepColumns columns(motion, c.sweep_period_s, n);
   auto column_motion = [&columns, &c](int column) -> const ColumnMotion* {
     return c.deskew ? &columns[column] : nullptr;
@@ -875,57 +772,24 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
     const double sure_in = band.inner_hi, sure_out = band.hi;
     const double band_m = c.ground_candidate_band_m;
     const bool deskew = c.deskew;
-    // four points at a time in single precision first
-    const FourPointWindow window4(c.min_range_m, c.max_range_m);
-    const FourPointTest band4(band, FourPointTest::kRelativeMargin * float_magnitude_m);
     float last_tau = std::numeric_limits<float>::quiet_NaN();
-    for (int i0 = 0; i0 < n; i0 += 4) {
-      unsigned window_out = 0, window_in = 0, band_out = 0, band_in = 0;
-      if (i0 + 4 <= n && float_tests) {
-        window4.sort(&cloud.points[i0], window_out, window_in);
-        band4.sort(&cloud.points[i0], band_out, band_in);
-        if (window_in == 0xF && (band_in | band_out) == 0xF) {
-          // the usual four: within the window and sure of the band, tame (|z| up to 50 m)
-          const core::LidarPoint* p = &cloud.points[i0];
-          if (deskew && !((p[0].time_offset_s == last_tau) & (p[1].time_offset_s == last_tau) &
-                          (p[2].time_offset_s == last_tau) & (p[3].time_offset_s == last_tau))) {
-            for (int k = 0; k < 4; ++k)
-              if (p[k].time_offset_s != last_tau) {
-                last_tau = p[k].time_offset_s;
-                columns.add(i0 + k, last_tau);
-              }
-          }
-          const uint32_t four = 0x01010101u * kTame + spread_bits(band_in) * kCandidate;
-          std::memcpy(&flags[static_cast<size_t>(i0)], &four, sizeof four);
-          candidate_count += static_cast<size_t>(std::popcount(band_in));
-          continue;
-        }
+    for (int i = 0; i < n; ++i) {
+      const core::LidarPoint& p = cloud.points[i];
+      if (!window.contains(p)) continue;
+      if (deskew && p.time_offset_s != last_tau) {
+        last_tau = p.time_offset_s;
+        columns.add(i, p.time_offset_s);
       }
-      // the others one by one: what single precision left open goes to double precision, and
-      // what is near a limit there to the exact window and z
-      for (int i = i0; i < std::min(i0 + 4, n); ++i) {
-        const core::LidarPoint& p = cloud.points[i];
-        const unsigned bit = 1u << (i - i0);
-        if (!(window_in & bit) && ((window_out & bit) || !window.contains(p))) continue;
-        if (deskew && p.time_offset_s != last_tau) {
-          last_tau = p.time_offset_s;
-          columns.add(i, p.time_offset_s);
-        }
-        uint8_t flag = kTame | kCandidate;
-        if (band_out & bit) {
-          flag = kTame;
-        } else if (!(band_in & bit)) {
-          const double z = std::abs(band.value(p.x, p.y, p.z));
-          if (!(z < sure_in && std::abs(p.z) <= SensorFrameTest::kMaxZM)) {
-            flag = std::abs(p.z) <= SensorFrameTest::kMaxZM ? kTame : kWild;
-            if ((flag == kWild || !(z > sure_out)) &&
-                std::abs(mount.transform(Vector3d(p.x, p.y, p.z)).z()) < band_m)
-              flag |= kCandidate;
-          }
-        }
-        if (flag & kCandidate) ++candidate_count;
-        flags[static_cast<size_t>(i)] = flag;
+      const double z = std::abs(band.value(p.x, p.y, p.z));
+      uint8_t flag = kTame | kCandidate;
+      if (!(z < sure_in && std::abs(p.z) <= SensorFrameTest::kMaxZM)) {
+        flag = std::abs(p.z) <= SensorFrameTest::kMaxZM ? kTame : kWild;
+        if ((flag == kWild || !(z > sure_out)) &&
+            std::abs(mount.transform(Vector3d(p.x, p.y, p.z)).z()) < band_m)
+          flag |= kCandidate;
       }
+      if (flag & kCandidate) ++candidate_count;
+      flags[static_cast<size_t>(i)] = flag;
     }
   }
 
@@ -937,29 +801,17 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
   std::vector<Vector3d> candidates;
   candidates.reserve(candidate_count / stride + 1);
   {
-    // the flags eight at a time: bit 8 k of `candidate` for a candidate at i0 + k
     size_t skip = 0;  // candidates to pass over before the next one used
     int column = 0;
-    for (int i0 = 0; i0 < n; i0 += 8) {
-      uint64_t eight = 0;
-      if (i0 + 8 <= n)
-        std::memcpy(&eight, &flags[static_cast<size_t>(i0)], sizeof eight);
-      else
-        std::memcpy(&eight, &flags[static_cast<size_t>(i0)], static_cast<size_t>(n - i0));
-      uint64_t candidate = (eight / kCandidate) & 0x0101010101010101u;
-      while (candidate != 0) {
-        const auto in_eight = static_cast<size_t>(std::popcount(candidate));
-        if (skip >= in_eight) {
-          skip -= in_eight;
-          break;
-        }
-        for (; skip > 0; --skip) candidate &= candidate - 1;
-        const int i = i0 + std::countr_zero(candidate) / 8;
-        candidate &= candidate - 1;
-        skip = stride - 1;
-        if (c.deskew) column = columns.column_of(i, column);
-        candidates.push_back(to_vehicle(mount, cloud.points[i], column_motion(column)));
+    for (int i = 0; i < n; ++i) {
+      if (!(flags[static_cast<size_t>(i)] & kCandidate)) continue;
+      if (skip > 0) {
+        --skip;
+        continue;
       }
+      skip = stride - 1;
+      if (c.deskew) column = columns.column_of(i, column);
+      candidates.push_back(to_vehicle(mount, cloud.points[i], column_motion(column)));
     }
   }
   GroundPlane ground;
@@ -1001,47 +853,24 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
     const SensorFrameTest band = height_test(column_motion(column));
     const double nx = band.nx, ny = band.ny, nz = band.nz, d = band.d;
     const double lo = band.lo, hi = band.hi;
-    const ColumnMotion* m = column_motion(column);
-    const double slopes = 1.0 + std::abs(ground.a) + std::abs(ground.b) + std::abs(band.nx) +
-                          std::abs(band.ny) + std::abs(band.nz);
-    const FourPointTest band4(
-        band, FourPointTest::kRelativeMargin * slopes *
-                  (float_magnitude_m + (m ? std::abs(m->back.x) + std::abs(m->back.y) : 0.0) +
-                   std::abs(ground.c)));
     const int end = c.deskew ? columns.end_of(column, n) : n;
-    for (int i0 = c.deskew ? columns[column].first_index : 0; i0 < end; i0 += 4) {
-      // four points at a time in single precision first
-      unsigned band_out = 0, band_in = 0;
-      if (i0 + 4 <= n && float_tests) {
-        band4.sort(&cloud.points[i0], band_out, band_in);
-        // nothing to do when each of the column's four is outside the window or surely outside
-        // the band
-        uint32_t four = 0;
-        std::memcpy(&four, &flags[static_cast<size_t>(i0)], sizeof four);
-        const unsigned in_window = gather_bits((four | four >> 1 | four >> 2) & 0x01010101u);
-        const unsigned tame = gather_bits(four & 0x01010101u * kTame);
-        const unsigned in_column = (1u << std::min(4, end - i0)) - 1;
-        if ((in_window & ~(tame & band_out) & in_column) == 0) continue;
+    for (int i = c.deskew ? columns[column].first_index : 0; i < end; ++i) {
+      const uint8_t flag = flags[static_cast<size_t>(i)];
+      if (flag == 0) continue;
+      const core::LidarPoint& p = cloud.points[i];
+      if (flag & kTame) {
+        const double v = nx * p.x + ny * p.y + nz * p.z + d;
+        if (v < lo || v > hi) continue;
       }
-      for (int i = i0; i < std::min(i0 + 4, end); ++i) {
-        const uint8_t flag = flags[static_cast<size_t>(i)];
-        if (flag == 0) continue;
-        const core::LidarPoint& p = cloud.points[i];
-        if (flag & kTame) {
-          if (band_out & (1u << (i - i0))) continue;
-          const double v = nx * p.x + ny * p.y + nz * p.z + d;
-          if (v < lo || v > hi) continue;
-        }
-        const Vector3d vehicle = to_vehicle(mount, p, column_motion(column));
-        double h = 0.0;
-        if (!raised_band.contains(vehicle, h)) continue;
-        // the range from the sensor, only for the points kept
-        const double horizontal = horizontal_range(p);
-        const double z = p.z;
-        const double range = std::sqrt(horizontal * horizontal + z * z);
-        raised.push_back(
-            {i, (vehicle - h * up).head<2>(), h, range, static_cast<double>(p.intensity), p.ring});
-      }
+      const Vector3d vehicle = to_vehicle(mount, p, column_motion(column));
+      double h = 0.0;
+      if (!raised_band.contains(vehicle, h)) continue;
+      // the range from the sensor, only for the points kept
+      const double horizontal = horizontal_range(p);
+      const double z = p.z;
+      const double range = std::sqrt(horizontal * horizontal + z * z);
+      raised.push_back(
+          {i, (vehicle - h * up).head<2>(), h, range, static_cast<double>(p.intensity), p.ring});
     }
   }
   out.non_ground_points = static_cast<int>(raised.size());
