@@ -154,10 +154,13 @@ void GraphSlam::predict(const OdometryDelta& odometry) {
   yaw_rate_rps_ = odometry.yaw_rate_rps;
 }
 
-std::vector<LandmarkCandidate> GraphSlam::candidates() const {
-  // landmarks near enough to be seen, with the drift allowed since each was last seen
+std::vector<LandmarkCandidate> GraphSlam::candidates(double farthest_observation_m) const {
+  // landmarks near enough to be seen, with the drift allowed since each was last seen: within
+  // the sensor's range, and near every cone of the batch (a detector may report cones beyond
+  // the range it sees reliably, and a landmark left out would be mapped again)
   const core::Pose2 pose = poses_.back().pose();
-  const double reach = config_.sensor_x_m + config_.max_range_m + 3.0;
+  const double reach =
+      std::max(config_.sensor_x_m + config_.max_range_m, farthest_observation_m) + 3.0;
   const bool localising = phase_ == core::SlamPhase::kLocalisation;
   std::vector<LandmarkCandidate> out;
   for (const Landmark& lm : landmarks_) {
@@ -203,8 +206,12 @@ void GraphSlam::add_motion_edges(ceres::Problem& problem, int pose) {
 
 void GraphSlam::associate_batch(const core::ConeObservations& observations) {
   // against the landmarks in reach; new landmarks only while mapping
+  double farthest_m = 0.0;
+  for (const core::ConeObservation& o : observations.cones)
+    farthest_m = std::max(farthest_m, o.position.norm());
   associations_ = associate(config_.association, poses_.back().pose(), &pose_covariance_,
-                            candidates(), observations, phase_ == core::SlamPhase::kMapping);
+                            candidates(farthest_m), observations,
+                            phase_ == core::SlamPhase::kMapping);
 }
 
 void GraphSlam::update(const core::ConeObservations& observations) {

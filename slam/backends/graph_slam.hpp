@@ -156,7 +156,7 @@ class GraphSlam : public Backend {
   void localise();
   LoopClosureStats update_landmark_statistics();
   void close_loop();
-  std::vector<LandmarkCandidate> candidates() const;
+  std::vector<LandmarkCandidate> candidates(double farthest_observation_m) const;
 
   // helpers
   bool in_field_of_view(const core::Pose2& pose, const core::Vec2& landmark) const;

@@ -124,6 +124,32 @@ TEST(GraphSlam, SameInputGivesTheSameEstimate) {
   for (size_t i = 0; i < ea.map.size(); ++i) EXPECT_EQ(ea.map[i].position, eb.map[i].position);
 }
 
+TEST(GraphSlam, AConeReportedBeyondTheConfiguredRangeIsMappedOnce) {
+  // a detector may report cones past the range the SLAM expects it to see reliably (the LiDAR
+  // front-end's 20 m against 15 m): seen there again, the cone is its landmark, not a new one
+  GraphSlamConfig config;
+  config.sensor_x_m = 0.0;
+  config.max_range_m = 10.0;
+  GraphSlam slam(config);
+  slam.reset({0.0, 0.0, 0.0}, 0);
+  core::ConeObservation cone;
+  cone.position = {14.0, 2.0};
+  cone.cls = core::ConeClass::kBlue;
+  cone.covariance = Eigen::Matrix2d::Identity() * 0.01;
+  for (int frame = 1; frame <= 4; ++frame) {
+    SlamInput input;
+    input.odometry.from = (frame - 1) * 100'000;
+    input.odometry.to = frame * 100'000;
+    input.odometry.covariance = Eigen::Matrix3d::Identity() * 1e-6;
+    input.observations.stamp = input.odometry.to;
+    input.observations.cones = {cone};
+    slam.process(input);
+  }
+  EXPECT_EQ(slam.landmark_count(), 1);
+  ASSERT_EQ(slam.estimate().map.size(), 1u);
+  EXPECT_NEAR(slam.estimate().map[0].position.x(), 14.0, 1e-3);
+}
+
 TEST(GraphSlamConfig, ValidateNamesTheBadKey) {
   GraphSlamConfig c;
   EXPECT_EQ(c.validate(), "");
