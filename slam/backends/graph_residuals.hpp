@@ -118,6 +118,52 @@ struct ObservationResidual {
   Eigen::Matrix2d sqrt_information_;
 };
 
+/// Adds an observation of a landmark from a pose held fixed to a running sum: with the pose
+/// fixed, the observation's whitened residual A l - b is linear in the landmark l (A = U R^T,
+/// b = U (R^T p + z)), so any number of them sum to one quadratic, information A^T A and
+/// information-weighted mean A^T b.
+inline void fold_observation(const core::Pose2& pose, const core::Vec2& measured,
+                             const Eigen::Matrix2d& sqrt_information, Eigen::Matrix2d& information,
+                             Eigen::Vector2d& weighted_mean) {
+  const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
+  Eigen::Matrix2d rotation_t;
+  rotation_t << c, s, -s, c;
+  const Eigen::Matrix2d a = sqrt_information * rotation_t;
+  const Eigen::Vector2d b = sqrt_information * (rotation_t * pose.position() + measured);
+  information += a.transpose() * a;
+  weighted_mean += a.transpose() * b;
+}
+
+/// The observations folded by fold_observation() as one prior on the landmark: U (l - m) with
+/// U^T U the summed information and m its mean. Its squared norm differs from the sum of the
+/// folded residuals' squares by a constant only.
+class LandmarkPriorResidual : public ceres::SizedCostFunction<2, 2> {
+ public:
+  LandmarkPriorResidual(const Eigen::Matrix2d& information, const Eigen::Vector2d& weighted_mean)
+      : sqrt_information_(information.llt().matrixU()),
+        mean_(information.llt().solve(weighted_mean)) {}
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const Eigen::Map<const Eigen::Vector2d> landmark(parameters[0]);
+    Eigen::Map<Eigen::Vector2d> residual(residuals);
+    residual = sqrt_information_ * (landmark - mean_);
+    // d residual / d landmark = U (row-major, as Ceres lays it out)
+    if (jacobians && jacobians[0]) {
+      Eigen::Map<Eigen::Matrix<double, 2, 2, Eigen::RowMajor>> jacobian(jacobians[0]);
+      jacobian = sqrt_information_;
+    }
+    return true;
+  }
+
+  /// The mean the folded observations put the landmark at.
+  const Eigen::Vector2d& mean() const { return mean_; }
+
+ private:
+  Eigen::Matrix2d sqrt_information_;
+  Eigen::Vector2d mean_;
+};
+
 /// Instantaneous-centre-of-rotation edge (RaceUp): with no lateral velocity at the rear axle the
 /// car moves on an arc, whose chord points half the heading change to the side. The residual is
 /// the part of the relative translation across that chord direction.

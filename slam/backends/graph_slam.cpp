@@ -187,8 +187,9 @@ void GraphSlam::add_observation_edge(int pose, int landmark,
   ObservationEdge edge;
   edge.pose = pose;
   edge.landmark = landmark;
-  edge.cost.reset(ObservationResidual::Create(observation.position,
-                                              sqrt_information<2>(observation.covariance)));
+  edge.measured = observation.position;
+  edge.sqrt_information = sqrt_information<2>(observation.covariance);
+  edge.cost.reset(ObservationResidual::Create(edge.measured, edge.sqrt_information));
   const int index = static_cast<int>(edges_.size());
   edges_.push_back(std::move(edge));
   poses_[pose].edges.push_back(index);
@@ -279,10 +280,42 @@ void GraphSlam::update(const core::ConeObservations& observations) {
   pose_covariance_ = pose_information.inverse();
 }
 
+void GraphSlam::fold_edges_before(int first) {
+  std::vector<int> touched;
+  for (; folded_poses_ < first; ++folded_poses_) {
+    const PoseNode& node = poses_[folded_poses_];
+    for (int e : node.edges) {
+      const ObservationEdge& edge = edges_[e];
+      Landmark& lm = landmarks_[edge.landmark];
+      fold_observation(node.pose(), edge.measured, edge.sqrt_information, lm.folded_information,
+                       lm.folded_weighted_mean);
+      touched.push_back(edge.landmark);
+    }
+  }
+  std::sort(touched.begin(), touched.end());
+  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+  for (int id : touched) {
+    Landmark& lm = landmarks_[id];
+    lm.folded_prior =
+        std::make_unique<LandmarkPriorResidual>(lm.folded_information, lm.folded_weighted_mean);
+  }
+}
+
+void GraphSlam::unfold_all() {
+  for (Landmark& lm : landmarks_) {
+    lm.folded_information.setZero();
+    lm.folded_weighted_mean.setZero();
+    lm.folded_prior.reset();
+  }
+  folded_poses_ = 0;
+}
+
 void GraphSlam::optimise_window() {
-  // the window: the last poses free, the one before them fixed
+  // the window: the last poses free, the one before them fixed; the observations from the
+  // poses before the window (fixed until the loop closes) are folded into one prior per landmark
   const int n = static_cast<int>(poses_.size());
   const int first = std::max(1, n - config_.window_poses);
+  fold_edges_before(first);
   ceres::Problem problem(problem_options());
   std::vector<int> window_landmarks;
   for (int i = first; i < n; ++i) {
@@ -295,15 +328,17 @@ void GraphSlam::optimise_window() {
   window_landmarks.erase(std::unique(window_landmarks.begin(), window_landmarks.end()),
                          window_landmarks.end());
 
-  // every observation of the window's landmarks, older poses held fixed
+  // the window's landmarks: their prior from the older poses, and their observations from the
+  // window's poses
   for (int id : window_landmarks) {
     Landmark& lm = landmarks_[id];
     if (lm.removed) continue;
+    if (lm.folded_prior) problem.AddResidualBlock(lm.folded_prior.get(), nullptr, lm.x.data());
     for (int e : lm.edges) {
       ObservationEdge& edge = edges_[e];
-      double* pose = poses_[edge.pose].x.data();
-      problem.AddResidualBlock(edge.cost.get(), huber_.get(), pose, lm.x.data());
-      if (edge.pose < first) problem.SetParameterBlockConstant(pose);
+      if (edge.pose < first) continue;
+      problem.AddResidualBlock(edge.cost.get(), huber_.get(), poses_[edge.pose].x.data(),
+                               lm.x.data());
     }
     if (lm.fixed) problem.SetParameterBlockConstant(lm.x.data());
   }
@@ -433,6 +468,8 @@ void GraphSlam::close_loop() {
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options(config_.global_iterations, true), &problem, &summary);
   ++loop_closures_;
+  // every pose moved: the priors folded at the old poses no longer hold
+  unfold_all();
 
   // the map is final: tentative landmarks go, the rest are fixed, and we localise from now on
   if (!config_.localise_after_loop_closure) return;

@@ -137,6 +137,11 @@ class GraphSlam : public Backend {
     double last_seen_travel_m = 0.0;
     /// Observation edges to this landmark.
     std::vector<int> edges;
+    /// The edges from poses that have left the window, folded into one prior (those poses
+    /// stay fixed until the loop closes): their summed information and weighted mean.
+    Eigen::Matrix2d folded_information = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d folded_weighted_mean = Eigen::Vector2d::Zero();
+    std::unique_ptr<ceres::CostFunction> folded_prior;
 
     core::Vec2 position() const { return {x[0], x[1]}; }
   };
@@ -146,6 +151,9 @@ class GraphSlam : public Backend {
     int pose = 0;
     int landmark = 0;
     std::unique_ptr<ceres::CostFunction> cost;
+    /// The observation in the vehicle frame and its whitening factor (for folding).
+    core::Vec2 measured = core::Vec2::Zero();
+    Eigen::Matrix2d sqrt_information = Eigen::Matrix2d::Identity();
   };
 
   // the recipe's steps
@@ -163,6 +171,11 @@ class GraphSlam : public Backend {
   void add_observation_edge(int pose, int landmark, const core::ConeObservation& observation);
   void add_motion_edges(ceres::Problem& problem, int pose);
   void remove_landmark(Landmark& landmark);
+  // folds the observation edges of the poses before `first` (fixed from now on) into their
+  // landmarks' priors
+  void fold_edges_before(int first);
+  // forgets the folded priors (the poses they were folded at have moved)
+  void unfold_all();
 
   GraphSlamConfig config_;
   std::deque<PoseNode> poses_;
@@ -183,6 +196,8 @@ class GraphSlam : public Backend {
   /// Covariance of the newest pose, for the association gate: grown by the odometry, shrunk by
   /// the matched observations.
   Eigen::Matrix3d pose_covariance_ = Eigen::Matrix3d::Zero();
+  /// Poses [0, folded_poses_) have their observation edges folded into landmark priors.
+  int folded_poses_ = 0;
   double travel_m_ = 0.0;
   double speed_mps_ = 0.0;
   double yaw_rate_rps_ = 0.0;

@@ -5,7 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <memory>
+#include <optional>
 
 namespace conesim::slam {
 namespace {
@@ -141,6 +143,45 @@ TEST(ObservationResidual, AutodiffMatchesNumeric) {
   expect_autodiff_matches_numeric<ObservationResidual, 2, 3, 2>(
       new ObservationResidual({6.0, 1.5}, sqrt_information<2>(cov)),
       new ObservationResidual({6.0, 1.5}, sqrt_information<2>(cov)), {p, m});
+}
+
+TEST(LandmarkPriorResidual, EqualsTheFoldedObservationsUpToAConstant) {
+  // three observations of one landmark from fixed poses, folded into one prior: wherever the
+  // landmark is, the prior's squared norm differs from the three residuals' by the same constant
+  const std::array<core::Pose2, 3> poses = {
+      core::Pose2{0.0, 0.0, 0.1}, core::Pose2{2.0, 0.5, 0.3}, core::Pose2{4.5, 1.0, -0.2}};
+  const std::array<core::Vec2, 3> seen = {core::Vec2{9.0, 2.1}, core::Vec2{7.2, 0.3},
+                                          core::Vec2{4.4, 2.6}};
+  Eigen::Matrix2d cov;
+  cov << 0.0025, 0.001, 0.001, 0.006;
+  const Eigen::Matrix2d sqrt_info = sqrt_information<2>(cov);
+  Eigen::Matrix2d information = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d weighted_mean = Eigen::Vector2d::Zero();
+  for (size_t k = 0; k < poses.size(); ++k)
+    fold_observation(poses[k], seen[k], sqrt_info, information, weighted_mean);
+  const LandmarkPriorResidual prior(information, weighted_mean);
+
+  std::optional<double> constant;
+  for (const core::Vec2& l : {core::Vec2{8.9, 3.4}, core::Vec2{9.3, 2.8}, core::Vec2{7.0, 5.0}}) {
+    double sum = 0.0;
+    for (size_t k = 0; k < poses.size(); ++k) {
+      ObservationResidual r(seen[k], sqrt_info);
+      double p[3] = {poses[k].x, poses[k].y, poses[k].yaw}, m[2] = {l.x(), l.y()}, e[2];
+      r(p, m, e);
+      sum += e[0] * e[0] + e[1] * e[1];
+    }
+    double m[2] = {l.x(), l.y()};
+    Eigen::Matrix<double, 2, 1> residual;
+    std::vector<Eigen::MatrixXd> jacobians;
+    evaluate<2>(prior, {m}, &residual, &jacobians);
+    const double difference = sum - residual.squaredNorm();
+    if (!constant) constant = difference;
+    EXPECT_NEAR(difference, *constant, 1e-9 * sum);
+    // its Jacobian: the whitening factor of the summed information
+    EXPECT_LT((jacobians[0] - Eigen::Matrix2d(information.llt().matrixU())).norm(), 1e-12);
+  }
+  // the prior is least where the three observations agree best
+  EXPECT_GE(*constant, 0.0);
 }
 
 TEST(IcrResidual, ZeroOnAnArcAndPenalisesSidewaysMotion) {
