@@ -3,9 +3,9 @@
 // each delivered cone frame runs one backend update, and the driver gets the backend's estimate
 // carried forward to the present with the odometry since. With `slam_latency_s` > 0 an update
 // takes that long on the sim clock: it runs on a thread of its own while the car drives on, and
-// its estimate reaches the driver at the first tick after the latency. Everything the backend does is scored
-// against ground truth here, in the harness: map, trajectory, associations, loop closures,
-// update time.
+// its estimate reaches the driver at the first tick after the latency. Everything the backend
+// does is scored against ground truth here, in the harness: map, trajectory, associations, loop
+// closures, update time.
 
 #include <array>
 #include <deque>

@@ -8,6 +8,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cmath>
 
 #include "core/geometry.hpp"
@@ -125,9 +126,7 @@ struct ObservationResidual {
 inline void fold_observation(const core::Pose2& pose, const core::Vec2& measured,
                              const Eigen::Matrix2d& sqrt_information, Eigen::Matrix2d& information,
                              Eigen::Vector2d& weighted_mean) {
-  const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
-  Eigen::Matrix2d rotation_t;
-  rotation_t << c, s, -s, c;
+  const Eigen::Matrix2d rotation_t = Eigen::Rotation2Dd(pose.yaw).toRotationMatrix().transpose();
   const Eigen::Matrix2d a = sqrt_information * rotation_t;
   const Eigen::Vector2d b = sqrt_information * (rotation_t * pose.position() + measured);
   information += a.transpose() * a;
@@ -155,9 +154,6 @@ class LandmarkPriorResidual : public ceres::SizedCostFunction<2, 2> {
     }
     return true;
   }
-
-  /// The mean the folded observations put the landmark at.
-  const Eigen::Vector2d& mean() const { return mean_; }
 
  private:
   Eigen::Matrix2d sqrt_information_;
