@@ -4,11 +4,10 @@
 #include <cstdint>
 #include <filesystem>
 #include <iosfwd>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "tracks/track.hpp"
 
@@ -44,6 +43,14 @@ struct PlotOverlay {
   std::vector<int> knocked_cones;
   /// A line under the title (result summary).
   std::string subtitle;
+  /// A referee event drawn where it happened, with a short label ("off-course 1, lap 3").
+  struct Mark {
+    enum class Kind { kConeHit, kOffCourse, kDnf };
+    Kind kind = Kind::kOffCourse;
+    core::Vec2 where = core::Vec2::Zero();
+    std::string label;
+  };
+  std::vector<Mark> marks;
 };
 
 /// Plots the track with gnuplot: cones in their colours, lanes, centre line, start pose and

@@ -19,7 +19,9 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "tracks/fsg_layouts.hpp"
 #include "tracks/lanes.hpp"
+#include "tracks/rules.hpp"
 
 namespace conesim::tracks {
 
@@ -354,6 +356,10 @@ void finish(Track& track, const Given& given) {
     rebuild_lanes(track);
   }
 
+  // big orange gates again, now that the lanes tell left from right across each group (before,
+  // only the nearest blue and yellow cones could, and those may stand round a corner)
+  if (!given.gates) track.timing_gates = gates_from_big_orange(track);
+
   // the centre line (not along absurdly long lanes), and a guessed start facing along it
   const std::vector<Vec2> left = track.lane_points(track.left_lane);
   double left_length_m = 0.0;
@@ -363,6 +369,28 @@ void finish(Track& track, const Given& given) {
   else
     track.warnings.push_back("the left lane is " + std::to_string(left_length_m) +
                              " m long; no centre line derived");
+
+  // a start guessed without a gate may stand off the track (the middle of the cones of a U or a
+  // loop is its infield): the car starts on the centre line, at the beginning of an open one
+  if (!given.start && track.timing_gates.empty() && track.centre_line.size() >= 2) {
+    const std::vector<Vec2>& line = track.centre_line;
+    size_t at = 0;
+    if (track.closed)
+      for (size_t i = 1; i < line.size(); ++i)
+        if ((line[i] - track.start.position()).squaredNorm() <
+            (line[at] - track.start.position()).squaredNorm())
+          at = i;
+    if ((line[at] - track.start.position()).norm() > 0.5) {
+      track.start.x = line[at].x();
+      track.start.y = line[at].y();
+      track.warnings.push_back("the guessed start moved onto the centre line at " +
+                               format_point(line[at]));
+      if (track.closed) {
+        orient_lanes(track);
+        track.centre_line = derive_centre_line(track);
+      }
+    }
+  }
   if (!given.start) {
     if (const std::optional<double> yaw = centre_line_yaw(track, track.start.position()))
       track.start.yaw = *yaw;
@@ -402,6 +430,21 @@ void finish(Track& track, const Given& given) {
     track.event = EventType::kSkidpad;
   else if (name.find("accel") != std::string::npos)
     track.event = EventType::kAcceleration;
+
+  // a skidpad's driving line is the figure eight through its timing line, not a line between
+  // lanes (its lanes are only the outer envelope)
+  if (track.event.value_or(infer_event(track)) == EventType::kSkidpad &&
+      !track.timing_gates.empty()) {
+    const Gate& g = track.timing_gates.front();
+    const Vec2 across = g.left - g.right;  // right post to left post: forward is its right turn
+    if (across.norm() > 0.0) {
+      // crossed the way the car starts (the referee orients the gate the same way)
+      Vec2 forward(across.y(), -across.x());
+      if (forward.dot(track.start.heading()) < 0.0) forward = -forward;
+      track.centre_line =
+          skidpad_driving_path(0.5 * (g.left + g.right), forward, track.start.position());
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -485,7 +528,9 @@ std::optional<ConeClass> pacsim_class(std::string_view name) {
   return class_named(kPacsimNames, name);
 }
 
-std::string_view pacsim_name(ConeClass cls) { return name_of(kPacsimNames, cls); }
+std::string_view pacsim_name(ConeClass cls) {
+  return name_of(kPacsimNames, cls);
+}
 
 bool yaml_bool(const YAML::Node& node, const std::string& file, const std::string& what) {
   const std::string v = node.IsScalar() ? lower(node.Scalar()) : "";
@@ -622,9 +667,13 @@ constexpr ClassNames kEufsNames{{{ConeClass::kBlue, "blue"},
                                  {ConeClass::kOrangeBig, "big_orange"},
                                  {ConeClass::kUnknown, "unknown"}}};
 
-std::optional<ConeClass> eufs_class(std::string_view tag) { return class_named(kEufsNames, tag); }
+std::optional<ConeClass> eufs_class(std::string_view tag) {
+  return class_named(kEufsNames, tag);
+}
 
-std::string_view eufs_tag(ConeClass cls) { return name_of(kEufsNames, cls); }
+std::string_view eufs_tag(ConeClass cls) {
+  return name_of(kEufsNames, cls);
+}
 
 std::optional<ConeClass> epfl_class(std::string_view type) {
   if (type == "small_orange" || type == "orange") return ConeClass::kOrangeSmall;
