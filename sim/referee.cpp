@@ -280,7 +280,8 @@ struct Referee::Impl {
   std::vector<RefCone> cones;
   std::vector<std::pair<int, int>> index_of_id;  // (id, index in cones), sorted by id
   ItemGrid cone_grid;
-  std::vector<GateLine> gates;  // [0] starts the timing; acceleration: [1] is the finish
+  std::vector<GateLine> gates;        // [0] starts the timing
+  std::optional<size_t> finish_gate;  // acceleration, open courses: the gate that ends the lap
   Boundary boundary = Boundary::kNone;
   tracks::TrackArea area;
   SkidpadArea skidpad;
@@ -359,15 +360,35 @@ Referee::Impl::Impl(const Track& track, core::EventType e,
   cone_grid.build(cone_points, footprint_half_diagonal + max_radius, kConeCellM);
 
   // gates: the track's, oriented along the track, or a fallback across it ahead of the start
+  // (along the centre line where it runs once through a gate: skidpad's crosses its own)
   for (const tracks::Gate& g : track.timing_gates) {
     if ((g.left - g.right).norm() < kMinGateLengthM) continue;
-    const Vec2 hint =
-        track.closed ? direction_near(track, 0.5 * (g.left + g.right)) : track.start.heading();
+    const Vec2 hint = e != EventType::kSkidpad && track.centre_line.size() >= 2
+                          ? direction_near(track, 0.5 * (g.left + g.right))
+                          : track.start.heading();
     gates.push_back(oriented_gate(g, hint));
   }
   if (gates.empty()) gates.push_back(fallback_gate(track, e, front_m));
   if (e == EventType::kAcceleration && gates.size() < 2)
     gates.push_back(gates.front().shifted(tracks::kAccelerationLengthM));
+
+  // an open course driven as autocross (a point-to-point layout) finishes across the ends of
+  // its lanes, unless the layout has a gate of its own there; one pass is its lap
+  const bool open_course =
+      !track.closed && (e == EventType::kAutocross || e == EventType::kTrackdrive);
+  if (open_course && gates.size() < 2 && !track.left_lane.empty() && !track.right_lane.empty()) {
+    const Vec2 left_end = track.cone(track.left_lane.back()).position;
+    const Vec2 right_end = track.cone(track.right_lane.back()).position;
+    const Vec2 out = (left_end - right_end).normalized();
+    const tracks::Gate end{left_end + kFallbackGatePostOutsideM * out,
+                           right_end - kFallbackGatePostOutsideM * out};
+    gates.push_back(oriented_gate(end, direction_near(track, 0.5 * (left_end + right_end))));
+  }
+  if (e == EventType::kAcceleration) finish_gate = 1;
+  if (open_course && gates.size() >= 2) {
+    finish_gate = gates.size() - 1;
+    laps_required = 1;
+  }
   gate_debt.assign(gates.size(), 0);
 
   // acceleration: the braking zone ends at the farthest cone past the finish
@@ -443,9 +464,9 @@ void Referee::Impl::on_forward_crossing(size_t gate, double time_s) {
   }
   if (!timing_start_s || result.laps >= laps_required) return;
 
-  // acceleration: the finish gate ends the run
-  if (event == EventType::kAcceleration) {
-    if (gate != 1) return;
+  // acceleration and open courses: the finish gate ends the run
+  if (finish_gate) {
+    if (gate != *finish_gate) return;
   } else if (gate != 0) {
     return;  // sector gates and a skidpad exit gate do not count laps
   }

@@ -9,6 +9,8 @@
 //   interpolated between physics steps. Crossings backwards are owed and cancel the next forward
 //   crossing. A track without gates gets one across the centre line just ahead of the start
 //   (skidpad: kSkidpadStartToTimingLineM ahead; acceleration: a finish gate 75 m further on).
+// - Open layouts driven as autocross (point-to-point courses) finish at the track's last gate,
+//   or at a gate across the ends of their lanes; one pass is their lap.
 // - Timeouts run from the first gate crossing; until the car reaches it they run from the run
 //   start (the first update), so a car that never reaches the line is DNF too.
 // - Off-course (all four wheels outside) is judged from the first gate crossing to the end.

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "control/driver.hpp"
+#include "core/error.hpp"
 #include "sim/slam_runner.hpp"
 #include "sim/track_commands.hpp"
 #include "sim/vehicle_sim.hpp"
@@ -130,8 +131,22 @@ nlohmann::json events_json(const std::vector<RefereeEvent>& events) {
 }  // namespace
 
 tracks::Track scenario_track(const Scenario& s) {
-  if (s.track.file) return tracks::read_track(*s.track.file);
-  return make_event_track(s.event, s.track.generate_seed.value_or(s.seed));
+  if (!s.track.file) return make_event_track(s.event, s.track.generate_seed.value_or(s.seed));
+  tracks::Track track = tracks::read_track(*s.track.file);
+
+  // laps need a circuit: an open layout (a point-to-point course) is driven once, as autocross
+  if (s.event == core::EventType::kTrackdrive && !track.closed && !track.left_lane.empty() &&
+      !track.right_lane.empty()) {
+    char ends[160];
+    const core::Vec2 l = track.cone(track.left_lane.back()).position;
+    const core::Vec2 r = track.cone(track.right_lane.back()).position;
+    std::snprintf(ends, sizeof ends, "(%.1f, %.1f) and (%.1f, %.1f)", l.x(), l.y(), r.x(), r.y());
+    throw core::InputError(s.track.file->string(), "event",
+                           std::string("trackdrive needs a closed circuit, and this layout's "
+                                       "lanes do not close (they end at ") +
+                               ends + "); run it as autocross");
+  }
+  return track;
 }
 
 core::ConeObservations perceive_ground_truth(const tracks::Track& track, const core::Pose2& pose,
