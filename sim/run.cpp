@@ -369,9 +369,19 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   };
   result.metrics = m;
 
-  // the other outputs first, metrics.json last: a run without it did not finish
+  // the results, metrics.json last of them: a run without it did not finish
   write_file_atomically(options.out_dir / "trajectory.csv", trajectory);
   tracks::write_eufs_csv(track, options.out_dir / "track.csv");
+  write_file_atomically(options.out_dir / "metrics.json", m.dump(2) + "\n");
+
+  // the pictures after the results: one that fails (no gnuplot) is a warning, the result stands
+  auto picture = [&result](const std::string& what, const std::function<void()>& draw) {
+    try {
+      draw();
+    } catch (const std::exception& e) {
+      result.warnings.push_back(what + " not written: " + e.what());
+    }
+  };
   if (options.plot) {
     PlotOverlay overlay{driven, r.cones_hit, "", {}};
     char summary[200];
@@ -402,12 +412,12 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
           break;
       }
     }
-    plot_track(track, s.event, options.out_dir / "run.png", &overlay);
+    picture("run.png", [&] { plot_track(track, s.event, options.out_dir / "run.png", &overlay); });
+    if (rig.perception())
+      picture("perception_bands.png",
+              [&] { rig.perception()->write_plot(options.out_dir / "perception_bands.png"); });
+    if (slam) picture("the SLAM report", [&] { slam->write_report(options.out_dir, m); });
   }
-  if (rig.perception() && options.plot)
-    rig.perception()->write_plot(options.out_dir / "perception_bands.png");
-  if (slam && options.plot) slam->write_report(options.out_dir, m);
-  write_file_atomically(options.out_dir / "metrics.json", m.dump(2) + "\n");
   return result;
 }
 

@@ -6,32 +6,7 @@ bin="$1"
 data="$2"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
-failures=0
-passed=0
-
-check() {  # check NAME EXPECTED_STATUS COMMAND... ; output in $work/out, $work/err
-  local name="$1" expected="$2"
-  shift 2
-  "$@" >"$work/out" 2>"$work/err"
-  local status=$?
-  if [ "$status" -ne "$expected" ]; then
-    echo "FAIL $name: exit $status, expected $expected"
-    sed 's/^/  stderr: /' "$work/err" | head -5
-    failures=$((failures + 1))
-    return 1
-  fi
-  passed=$((passed + 1))
-  return 0
-}
-expect_text() {  # expect_text NAME FILE REGEX
-  if ! grep -Eq -e "$3" "$2"; then
-    echo "FAIL $1: $(basename "$2") does not match /$3/"
-    head -5 "$2" | sed 's/^/  /'
-    failures=$((failures + 1))
-  else
-    passed=$((passed + 1))
-  fi
-}
+. "$(dirname "$0")/check_lib.sh"
 
 # version and help
 check version 0 "$bin" --version && expect_text version "$work/out" '^conesim [0-9]+\.[0-9]+'
@@ -89,5 +64,4 @@ if command -v gnuplot >/dev/null; then
   expect_text plot_png <(head -c 8 "$work/fsg.png" | od -c) 'P   N   G'
 fi
 
-echo "$passed passed, $failures failed"
-[ "$failures" -eq 0 ]
+report
