@@ -85,4 +85,17 @@ check no_gnuplot 0 env PATH=/nonexistent "$bin" run skidpad --out "$work/nognupl
 expect_text no_gnuplot "$work/err" '^warning: run\.png not written'
 expect_text no_gnuplot "$work/nognuplot/metrics.json" '"passed": true'
 
+# 9: a blind cone sensor maps nothing: the map figures are null, not 0, every cone in view is
+# missed, and the SLAM criteria fail on null
+blind=(--set sensors.cone_sensor.detection_probability_near=0
+       --set sensors.cone_sensor.detection_probability_far=0)
+check blind_slam 1 "$bin" run acceleration-graphslam --no-plot --out "$work/blind" "${blind[@]}"
+expect_text blind_slam "$work/out" '^fail: SLAM map RMSE .*not measured'
+expect_text blind_slam "$work/out" '^fail: SLAM correct association fraction .*not measured'
+expect_text blind_slam "$work/blind/metrics.json" '"map_rmse_m": null'
+expect_text blind_slam "$work/blind/metrics.json" '"da_correct_fraction": null'
+expect_text blind_slam "$work/blind/metrics.json" '"map_missed": [1-9][0-9]*,'
+check seeing_slam 0 "$bin" run acceleration-graphslam --no-plot --out "$work/seeing"
+expect_text seeing_slam "$work/seeing/metrics.json" '"map_missed": 0,'
+
 report
