@@ -1,5 +1,6 @@
 #include "sim/scenario.hpp"
 
+#include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/yaml.h>
 
 #include <charconv>
@@ -314,6 +315,9 @@ void apply_override(YAML::Node& root, const std::string& assignment, const std::
   YAML::Node value;
   try {
     value = YAML::Load(text);
+  } catch (const YAML::DeepRecursion& e) {
+    throw InputError(option, 0,
+                     path + ": value nested " + std::to_string(e.depth()) + " levels deep");
   } catch (const YAML::Exception& e) {
     throw InputError(option, 0, path + ": value is not valid YAML: " + e.msg);
   }
@@ -380,6 +384,11 @@ YAML::Node parse_yaml_file(const fs::path& file, const std::string& what) {
   if (!in) throw InputError(name, 0, "cannot read the " + what + " file");
   try {
     return YAML::Load(in);
+  } catch (const YAML::DeepRecursion& e) {
+    // yaml-cpp's message for it is "bad file"
+    throw InputError(name, e.mark.is_null() ? 0 : e.mark.line + 1,
+                     "malformed YAML: nested " + std::to_string(e.depth()) +
+                         " levels deep, more than any " + what + " file");
   } catch (const YAML::Exception& e) {
     throw InputError(name, e.mark.is_null() ? 0 : e.mark.line + 1, "malformed YAML: " + e.msg);
   }

@@ -1,5 +1,6 @@
 #include "tracks/io.hpp"
 
+#include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -276,6 +277,11 @@ const YAML::Node& yaml_list(const YAML::Node& node, const std::string& file,
 YAML::Node load_yaml(const std::string& text, const std::string& file) {
   try {
     return YAML::Load(text);
+  } catch (const YAML::DeepRecursion& e) {
+    // yaml-cpp's message for it is "bad file"
+    throw InputError(file, e.mark.line >= 0 ? e.mark.line + 1 : 0,
+                     "malformed YAML: nested " + std::to_string(e.depth()) +
+                         " levels deep, more than any layout");
   } catch (const YAML::Exception& e) {
     throw InputError(file, e.mark.line >= 0 ? e.mark.line + 1 : 0, "malformed YAML: " + e.msg);
   }
@@ -844,9 +850,16 @@ void write_text(const std::string& text, const std::filesystem::path& file) {
   if (!out) throw InputError(file.string(), 0, "write failed");
 }
 
+// the text without a UTF-8 byte-order mark (editors on Windows write one; it is no data)
+std::string_view without_bom(std::string_view text) {
+  if (text.starts_with("\xEF\xBB\xBF")) text.remove_prefix(3);
+  return text;
+}
+
 }  // namespace
 
-Track parse_track(const std::string& text, TrackFormat format, const std::string& name) {
+Track parse_track(const std::string& text_with_bom, TrackFormat format, const std::string& name) {
+  const std::string text(without_bom(text_with_bom));
   // refuse what cannot be a layout before parsing
   if (text.size() > kMaxTrackFileBytes)
     throw InputError(name, 0,
@@ -888,6 +901,7 @@ Track read_track(const std::filesystem::path& file) {
   std::string text(static_cast<size_t>(size), '\0');
   in.read(text.data(), static_cast<std::streamsize>(size));
   text.resize(static_cast<size_t>(in.gcount()));
+  text = std::string(without_bom(text));
 
   // the format from the extension and the content
   const std::string ext = lower(file.extension().string());

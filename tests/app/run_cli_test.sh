@@ -53,6 +53,8 @@ bad dump_bogus 'dump' skidpad --dump bogus
 bad dump_every_zero 'dump-every' skidpad --dump-every 0
 bad unknown_option 'bogus' skidpad --bogus
 bad missing_scenario 'SCENARIO' 
+printf 'event: %s%s\n' "$(printf '[%.0s' $(seq 600))" "$(printf ']%.0s' $(seq 600))" >"$work/deep.yaml"
+bad deep_yaml 'deep\.yaml:1: malformed YAML: nested [0-9]+ levels deep' "$work/deep.yaml"
 check no_command 2 "$bin"
 check help_is_fine 0 "$bin" run --help
 
