@@ -706,26 +706,38 @@ Track parse_eufs(const std::string& text, const std::string& file, Track track) 
   const auto lines = content_lines(text);
 
   // an optional header, with conesim's id column
+  // conesim's own files add id, and lane (left or right, in driving order; on the car_start
+  // row: closed or open), so that its lanes read back as written
   size_t columns = kEufsColumns.size();
   bool has_id = false;
+  bool has_lane = false;
   size_t first_row = 0;
   if (!lines.empty() && split_fields(lines[0].second).front() == "tag") {
     const std::vector<std::string_view> header = split_fields(lines[0].second);
-    has_id = header.size() == columns + 1 && header.back() == "id";
+    has_id = header.size() > columns && header[columns] == "id";
+    has_lane = has_id && header.size() == columns + 2 && header.back() == "lane";
     const bool known = std::equal(kEufsColumns.begin(), kEufsColumns.end(), header.begin(),
                                   header.begin() + std::min(header.size(), columns));
-    if (!known || (header.size() != columns && !has_id))
-      throw InputError(file, lines[0].first,
-                       "expected the header " + std::string(kEufsHeader) + " (optionally ,id)");
+    if (!known ||
+        !(header.size() == columns || (has_id && header.size() == columns + 1) || has_lane))
+      throw InputError(
+          file, lines[0].first,
+          "expected the header " + std::string(kEufsHeader) + " (optionally ,id or ,id,lane)");
     columns = header.size();
     first_row = 1;
   }
+  Given given;
+  std::vector<int>* lanes[2] = {&track.left_lane, &track.right_lane};
 
   std::optional<int> start_line;
   for (size_t r = first_row; r < lines.size(); ++r) {
     const auto& [line, text_line] = lines[r];
     const std::vector<std::string_view> f = split_fields(text_line);
-    check_columns(f, columns, std::string(kEufsHeader) + (has_id ? ",id" : ""), file, line);
+    check_columns(f, columns,
+                  std::string(kEufsHeader) + (has_lane ? ",id,lane"
+                                              : has_id ? ",id"
+                                                       : ""),
+                  file, line);
 
     // the numbers of the row
     const double x = coordinate_or_throw(f[1], file, line, "x");
@@ -744,6 +756,7 @@ Track parse_eufs(const std::string& text, const std::string& file, Track track) 
             "a second car_start row (the first is on line " + std::to_string(*start_line) + ")");
       start_line = line;
       track.start = {x, y, core::normalize_angle(direction)};
+      if (has_lane && (f[8] == "closed" || f[8] == "open")) given.closed = f[8] == "closed";
       continue;
     }
     if (tag == "midpoint" || tag == "inactive_noise") continue;
@@ -774,9 +787,24 @@ Track parse_eufs(const std::string& text, const std::string& file, Track track) 
             "id: expected an integer from 0 to 999999999, found '" + std::string(id_text) + "'");
     }
     sink.add_with_id(*cls, {x, y}, line, covariance, id);
+
+    // the lane the cone belongs to, in file order
+    if (has_lane && !f[8].empty()) {
+      if (f[8] != "left" && f[8] != "right")
+        throw InputError(
+            file, line, "lane: expected left, right or nothing, found '" + std::string(f[8]) + "'");
+      if (id < 0) throw InputError(file, line, "lane: a cone in a lane needs its id");
+      lanes[f[8] == "left" ? 0 : 1]->push_back(id);
+      given.lanes = true;
+    }
   }
   sink.finish();
-  Given given;
+  // a lane cone dropped as a repeat of another is not in the layout
+  for (std::vector<int>* lane : lanes)
+    std::erase_if(*lane, [&track](int id) {
+      return std::none_of(track.cones.begin(), track.cones.end(),
+                          [id](const Cone& c) { return c.id == id; });
+    });
   given.start = start_line.has_value();
   finish(track, given);
   return track;
@@ -958,35 +986,37 @@ void write_pacsim_yaml(const Track& track, const std::filesystem::path& file) {
 
 void write_eufs_csv(const Track& track, const std::filesystem::path& file) {
   std::ostringstream out;
-  out << kEufsHeader << ",id\n";
+  out << kEufsHeader << ",id,lane\n";
 
-  // the start pose, its yaw in the direction column
+  // the start pose, its yaw in the direction column, and whether the lanes close
   out << "car_start," << format_number(track.start.x) << "," << format_number(track.start.y) << ","
-      << format_number(track.start.yaw) << ",0.0,0.0,0.0,\n";
+      << format_number(track.start.yaw) << ",0.0,0.0,0.0,," << (track.closed ? "closed" : "open")
+      << "\n";
 
   // a row per cone: the lanes in driving order first, then the rest by id
-  const auto row = [&out](const Cone& c) {
+  const auto row = [&out](const Cone& c, const char* lane) {
     const Eigen::Matrix2d cov = c.covariance.value_or(Eigen::Matrix2d::Zero());
     out << eufs_tag(c.cls) << "," << format_number(c.position.x()) << ","
         << format_number(c.position.y()) << ",0.0," << format_number(cov(0, 0)) << ","
-        << format_number(cov(1, 1)) << "," << format_number(cov(0, 1)) << "," << c.id << "\n";
+        << format_number(cov(1, 1)) << "," << format_number(cov(0, 1)) << "," << c.id << "," << lane
+        << "\n";
   };
   std::vector<bool> written(track.cones.size(), false);
-  const auto write_lane = [&](const std::vector<int>& lane) {
+  const auto write_lane = [&](const std::vector<int>& lane, const char* name) {
     for (int id : lane)
       for (size_t i = 0; i < track.cones.size(); ++i)
         if (track.cones[i].id == id && !written[i]) {
-          row(track.cones[i]);
+          row(track.cones[i], name);
           written[i] = true;
         }
   };
-  write_lane(track.left_lane);
-  write_lane(track.right_lane);
+  write_lane(track.left_lane, "left");
+  write_lane(track.right_lane, "right");
   std::vector<const Cone*> rest;
   for (size_t i = 0; i < track.cones.size(); ++i)
     if (!written[i]) rest.push_back(&track.cones[i]);
   std::sort(rest.begin(), rest.end(), [](const Cone* a, const Cone* b) { return a->id < b->id; });
-  for (const Cone* c : rest) row(*c);
+  for (const Cone* c : rest) row(*c, "");
   write_text(out.str(), file);
 }
 
