@@ -230,6 +230,17 @@ int line_of(const YAML::Node& node) {
   return mark.line >= 0 ? mark.line + 1 : 0;
 }
 
+// a key given twice in one map: a warning with both lines (yaml-cpp keeps both entries, and
+// the readers take them in file order, so lists given twice are read one after the other)
+void warn_repeated_key(const YAML::Node& key, std::map<std::string, int>& first_lines,
+                       const std::string& file, const std::string& where, Track& track) {
+  const auto [it, fresh] = first_lines.emplace(key.Scalar(), line_of(key));
+  if (!fresh)
+    track.warnings.push_back(file + ":" + std::to_string(line_of(key)) + ": " + where +
+                             key.Scalar() + ": given again (also on line " +
+                             std::to_string(it->second) + "); both are read");
+}
+
 // the value of a key that must be there (missing keys are zombie nodes in yaml-cpp)
 YAML::Node required(const YAML::Node& map, const std::string& key, const std::string& file,
                     const std::string& what) {
@@ -464,8 +475,10 @@ Track parse_fssim(const YAML::Node& root, const std::string& file, Track track) 
   std::vector<Vec2> posts;
 
   // walk the keys in file order so that ids follow the file
+  std::map<std::string, int> key_lines;
   for (const auto& entry : root) {
     const std::string key = entry.first.Scalar();
+    warn_repeated_key(entry.first, key_lines, file, "", track);
     const YAML::Node& value = entry.second;
     const auto read_cones = [&](ConeClass cls, std::vector<int>* lane) {
       for (const YAML::Node& item : yaml_list(value, file, key)) {
@@ -579,8 +592,10 @@ Track parse_pacsim(const YAML::Node& root, const std::string& file, Track track)
   };
 
   // walk the keys in file order so that ids follow the file
+  std::map<std::string, int> key_lines;
   for (const auto& entry : layout) {
     const std::string key = entry.first.Scalar();
+    warn_repeated_key(entry.first, key_lines, file, "track.", track);
     const YAML::Node& value = entry.second;
     if (key == "left" || key == "right" || key == "unknown") {
       std::vector<int>* lane =

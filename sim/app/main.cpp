@@ -29,6 +29,14 @@ CLI::Option* add_event_option(CLI::App* cmd, std::string& value, const std::stri
       ->check(CLI::IsMember({"skidpad", "acceleration", "autocross", "trackdrive"}));
 }
 
+// an output file must go into a folder that exists: bad input otherwise, not a failed tool
+void check_output_folder(const fs::path& file) {
+  const fs::path folder = file.parent_path();
+  std::error_code ec;
+  if (!folder.empty() && !fs::is_directory(folder, ec))
+    throw conesim::core::InputError(file.string(), 0, "cannot write: no folder " + folder.string());
+}
+
 std::optional<EventType> parse_event(const std::string& name) {
   if (name.empty()) return std::nullopt;
   return conesim::tracks::event_from_string(name);
@@ -112,6 +120,7 @@ void add_track_commands(CLI::App& app, int& status) {
     add_event_option(cmd, *event, "Mark violations of this event's rules (default: recognised)");
     cmd->callback([=] {
       const auto t = conesim::tracks::read_track(*file);
+      check_output_folder(*out);
       conesim::sim::plot_track(t, parse_event(*event), *out);
     });
   }

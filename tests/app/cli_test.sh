@@ -75,6 +75,9 @@ printf 'cones_left: %s%s\n' "$(printf '[%.0s' $(seq 600))" "$(printf ']%.0s' $(s
 check deep_yaml 2 "$bin" track validate "$work/deep.yaml"
 expect_text deep_yaml "$work/err" 'deep\.yaml:1: malformed YAML: nested [0-9]+ levels deep'
 
+check plot_no_folder 2 "$bin" track plot "$data/tracks/fssim/FSG.yaml" --out "$work/no/such/x.png"
+expect_text plot_no_folder "$work/err" 'x\.png: cannot write: no folder'
+
 if command -v gnuplot >/dev/null; then
   check plot 0 "$bin" track plot "$data/tracks/fssim/FSG.yaml" --out "$work/fsg.png"
   expect_text plot_png <(head -c 8 "$work/fsg.png" | od -c) 'P   N   G'

@@ -82,6 +82,13 @@ if ! cmp -s "$work/reuse/metrics.json" "$work/first-metrics.json"; then
   echo "FAIL reuse_bad: bad input changed the earlier metrics.json"; failures=$((failures + 1))
 fi
 
+# 10: a run that starts removes an earlier metrics.json first, so one that then fails (here a
+# folder in the way of trajectory.csv) leaves none that could pass for its result
+rm -f "$work/reuse/trajectory.csv" && mkdir -p "$work/reuse/trajectory.csv/in-the-way"
+check reuse_fails_after_start 3 "$bin" run skidpad --no-plot --out "$work/reuse"
+expect_text reuse_fails_after_start "$work/err" 'internal error'
+expect_missing reuse_fails_after_start "$work/reuse/metrics.json"
+
 # 4: results first, pictures after: no gnuplot is a warning, and the verdict stands
 check no_gnuplot 0 env PATH=/nonexistent "$bin" run skidpad --out "$work/nognuplot"
 expect_text no_gnuplot "$work/err" '^warning: run\.png not written'

@@ -560,6 +560,18 @@ TEST(ReadTrack, ByteOrderMarkIsIgnored) {
   EXPECT_EQ(t.cones.size(), 3u);
 }
 
+// a key given twice is no longer silent (issue 20 item 8)
+TEST(ReadTrack, KeyGivenTwiceIsAWarningWithBothLines) {
+  const Track t = parse_track(
+      "cones_left: [[0, 2], [5, 2]]\ncones_right: [[0, -2], [5, -2]]\ncones_left: [[10, 2]]\n",
+      TrackFormat::kFssimYaml, "twice.yaml");
+  bool warned = false;
+  for (const std::string& w : t.warnings)
+    warned = warned ||
+             w.find("twice.yaml:3: cones_left: given again (also on line 1)") != std::string::npos;
+  EXPECT_TRUE(warned) << ::testing::PrintToString(t.warnings);
+}
+
 TEST(WriteTrack, UnknownExtensionIsAnInputError) {
   TempDir dir;
   EXPECT_THROW(write_track(Track{}, dir / "t.json"), InputError);
