@@ -22,6 +22,7 @@ bad() {  # bad NAME REGEX ARGS... : exit 2, the message matches, no runs/ folder
   shift 2
   check "$name" 2 "$bin" run "$@" && expect_text "$name" "$work/err" "$regex"
   expect_missing "$name: no run folder" "$work/runs"
+  rm -rf "$work/runs"  # so that the next check stands on its own
 }
 
 # 1: whole numbers are never narrowed
