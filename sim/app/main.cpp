@@ -301,6 +301,9 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::cerr << "conesim: internal error: " << e.what() << "\n";
     return conesim::sim::kExitInternalError;
+  } catch (...) {
+    std::cerr << "conesim: internal error: an exception of unknown type\n";
+    return conesim::sim::kExitInternalError;
   }
   return status;
 }
