@@ -78,21 +78,34 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
   if (pass.max_final_time_s > 0.0 && r.final_time_s > pass.max_final_time_s)
     failures.push_back("final time " + std::to_string(r.final_time_s) + " s over " +
                        std::to_string(pass.max_final_time_s) + " s");
-  // the SLAM estimate's quality
+  // the SLAM estimate's quality; a figure with nothing measured (null: no landmark matched a
+  // true cone, no association, no update) fails the criterion on it
   if (slam_metrics.is_null()) return failures;
-  auto figure = [&](const char* key) { return slam_metrics.at(key).get<double>(); };
-  if (pass.max_map_rmse_m && figure("map_rmse_m") > *pass.max_map_rmse_m)
-    failures.push_back("SLAM map RMSE " + std::to_string(figure("map_rmse_m")) + " m over " +
-                       std::to_string(*pass.max_map_rmse_m) + " m");
-  if (pass.max_ate_rmse_m && figure("ate_rmse_m") > *pass.max_ate_rmse_m)
-    failures.push_back("SLAM trajectory RMSE " + std::to_string(figure("ate_rmse_m")) + " m over " +
-                       std::to_string(*pass.max_ate_rmse_m) + " m");
-  if (pass.min_da_correct_fraction && figure("da_correct_fraction") < *pass.min_da_correct_fraction)
-    failures.push_back("SLAM associations " + std::to_string(figure("da_correct_fraction")) +
-                       " correct, at least " + std::to_string(*pass.min_da_correct_fraction) +
-                       " required");
-  if (pass.max_false_loop_closures && figure("false_loop_closures") > *pass.max_false_loop_closures)
-    failures.push_back(std::to_string(static_cast<int>(figure("false_loop_closures"))) +
+  auto limit = [&](const char* key, const char* what, bool at_most, double bound,
+                   const char* why_null) {
+    const nlohmann::json& v = slam_metrics.at(key);
+    const std::string rule =
+        std::string(at_most ? "at most " : "at least ") + std::to_string(bound) + " required";
+    if (v.is_null()) {
+      failures.push_back(std::string(what) + " not measured (" + key + " is null: " + why_null +
+                         "), " + rule);
+      return;
+    }
+    const double x = v.get<double>();
+    if (at_most ? x > bound : x < bound)
+      failures.push_back(std::string(what) + " " + std::to_string(x) + ", " + rule);
+  };
+  if (pass.max_map_rmse_m)
+    limit("map_rmse_m", "SLAM map RMSE [m]", true, *pass.max_map_rmse_m,
+          "no map landmark matched a true cone");
+  if (pass.max_ate_rmse_m)
+    limit("ate_rmse_m", "SLAM trajectory RMSE [m]", true, *pass.max_ate_rmse_m, "no SLAM update");
+  if (pass.min_da_correct_fraction)
+    limit("da_correct_fraction", "SLAM correct association fraction", false,
+          *pass.min_da_correct_fraction, "no observation was associated with a landmark");
+  if (pass.max_false_loop_closures &&
+      slam_metrics.at("false_loop_closures").get<int>() > *pass.max_false_loop_closures)
+    failures.push_back(std::to_string(slam_metrics.at("false_loop_closures").get<int>()) +
                        " false loop closures, at most " +
                        std::to_string(*pass.max_false_loop_closures) + " allowed");
   return failures;
@@ -384,9 +397,19 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   };
   result.metrics = m;
 
-  // the other outputs first, metrics.json last: a run without it did not finish
+  // the results, metrics.json last of them: a run without it did not finish
   write_file_atomically(options.out_dir / "trajectory.csv", trajectory);
   tracks::write_eufs_csv(track, options.out_dir / "track.csv");
+  write_file_atomically(options.out_dir / "metrics.json", m.dump(2) + "\n");
+
+  // the pictures after the results: one that fails (no gnuplot) is a warning, the result stands
+  auto picture = [&result](const std::string& what, const std::function<void()>& draw) {
+    try {
+      draw();
+    } catch (const std::exception& e) {
+      result.warnings.push_back(what + " not written: " + e.what());
+    }
+  };
   if (options.plot) {
     PlotOverlay overlay{driven, r.cones_hit, "", {}};
     char summary[200];
@@ -417,12 +440,12 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
           break;
       }
     }
-    plot_track(track, s.event, options.out_dir / "run.png", &overlay);
+    picture("run.png", [&] { plot_track(track, s.event, options.out_dir / "run.png", &overlay); });
+    if (rig.perception())
+      picture("perception_bands.png",
+              [&] { rig.perception()->write_plot(options.out_dir / "perception_bands.png"); });
+    if (slam) picture("the SLAM report", [&] { slam->write_report(options.out_dir, m); });
   }
-  if (rig.perception() && options.plot)
-    rig.perception()->write_plot(options.out_dir / "perception_bands.png");
-  if (slam && options.plot) slam->write_report(options.out_dir, m);
-  write_file_atomically(options.out_dir / "metrics.json", m.dump(2) + "\n");
   return result;
 }
 

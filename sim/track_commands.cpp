@@ -1,5 +1,6 @@
 #include "sim/track_commands.hpp"
 
+#include <cctype>
 #include <cmath>
 #include <ostream>
 #include <sstream>
@@ -99,15 +100,30 @@ Track make_event_track(EventType event, uint64_t seed) {
 }
 
 void write_track_atomically(const Track& track, const fs::path& out) {
-  // same extension, so the writer picks the same format
+  // same extension, so the writer picks the same format; errors name the target, not the
+  // temporary file
   const fs::path partial = out.parent_path() / (".partial-" + out.filename().string());
+  std::string ext = out.extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".csv" && ext != ".yaml" && ext != ".yml")
+    throw core::InputError(
+        out.string(), 0,
+        "unknown extension '" + ext + "' for writing (expected .yaml, .yml or .csv)");
+  std::error_code ec;
+  if (!out.parent_path().empty() && !fs::is_directory(out.parent_path(), ec))
+    throw core::InputError(out.string(), 0,
+                           "cannot write: no folder " + out.parent_path().string());
   try {
     tracks::write_track(track, partial);
     fs::rename(partial, out);
-  } catch (...) {
-    std::error_code ec;
+  } catch (const fs::filesystem_error& e) {
     fs::remove(partial, ec);
-    throw;
+    throw core::InputError(out.string(), 0, "cannot write: " + e.code().message());
+  } catch (const core::InputError&) {
+    fs::remove(partial, ec);
+    throw core::InputError(out.string(), 0,
+                           "cannot write (the temporary file " + partial.filename().string() +
+                               " beside it could not be written)");
   }
 }
 

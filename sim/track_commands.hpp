@@ -17,6 +17,8 @@ namespace conesim::sim {
 inline constexpr int kExitOk = 0;
 inline constexpr int kExitViolations = 1;
 inline constexpr int kExitBadInput = 2;
+/// Not for any input: a bug in conesim (or a failing machine), reported with its message.
+inline constexpr int kExitInternalError = 3;
 
 /// Reads each file and checks it against the rules of `event` (inferred per file when empty).
 /// Unreadable files print "file:line: what was expected" to `err` and give exit 2; rule

@@ -29,6 +29,14 @@ CLI::Option* add_event_option(CLI::App* cmd, std::string& value, const std::stri
       ->check(CLI::IsMember({"skidpad", "acceleration", "autocross", "trackdrive"}));
 }
 
+// an output file must go into a folder that exists: bad input otherwise, not a failed tool
+void check_output_folder(const fs::path& file) {
+  const fs::path folder = file.parent_path();
+  std::error_code ec;
+  if (!folder.empty() && !fs::is_directory(folder, ec))
+    throw conesim::core::InputError(file.string(), 0, "cannot write: no folder " + folder.string());
+}
+
 std::optional<EventType> parse_event(const std::string& name) {
   if (name.empty()) return std::nullopt;
   return conesim::tracks::event_from_string(name);
@@ -112,6 +120,7 @@ void add_track_commands(CLI::App& app, int& status) {
     add_event_option(cmd, *event, "Mark violations of this event's rules (default: recognised)");
     cmd->callback([=] {
       const auto t = conesim::tracks::read_track(*file);
+      check_output_folder(*out);
       conesim::sim::plot_track(t, parse_event(*event), *out);
     });
   }
@@ -146,24 +155,28 @@ void add_run_command(CLI::App& app, int& status) {
       ->check(CLI::Range(1, 1000000));
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;
+    // every input is checked before the run folder is touched
     const fs::path file = sim::find_scenario(*scenario);
-    std::vector<std::string> overrides = *sets;
-    if (seed_opt->count() > 0) overrides.insert(overrides.begin(), "seed=" + std::to_string(*seed));
-    sim::Scenario s = sim::load_scenario(file, overrides);
+    sim::Scenario s = sim::load_scenario(
+        file, *sets, seed_opt->count() > 0 ? std::optional<uint64_t>(*seed) : std::nullopt);
+    for (const std::string& w : s.warnings) std::cerr << "warning: " << w << "\n";
     if (!track->empty()) {
       s.track.file = *track;
       s.track.generate_seed.reset();
     }
     const conesim::tracks::Track t = sim::scenario_track(s);
+    for (const std::string& w : t.warnings) std::cerr << "warning: " << w << "\n";
 
     sim::RunOptions options;
     options.plot = !*no_plot;
     options.dump.sensors = {dump->begin(), dump->end()};
     options.dump.every = *dump_every;
-    if (out->empty()) {
-      options.out_dir = sim::make_run_dir("runs", s.name);
-    } else {
-      options.out_dir = *out;
+    try {
+      options.out_dir = out->empty() ? sim::make_run_dir("runs", s.name) : *out;
+      fs::create_directories(options.out_dir);
+    } catch (const fs::filesystem_error& e) {
+      throw conesim::core::InputError(out->empty() ? "runs" : "--out " + out->string(), 0,
+                                      "cannot create the run folder: " + e.code().message());
     }
     // the live progress line only on a terminal
     const bool tty = isatty(STDERR_FILENO);
@@ -186,6 +199,7 @@ void add_run_command(CLI::App& app, int& status) {
                 ref.final_time_s, ref.cones_hit.size(), ref.off_course,
                 r.sim_time_s / std::max(r.wall_time_s, 1e-9));
     for (const auto& f : r.failures) std::printf("fail: %s\n", f.c_str());
+    for (const auto& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
     std::printf("%s\n", options.out_dir.string().c_str());
     status = r.passed ? 0 : 1;
   });
@@ -271,16 +285,25 @@ int main(int argc, char** argv) {
   add_vehicle_commands(app);
   add_bench_commands(app);
 
+  // exit 0 (done, passed), 1 (a run that did not pass, rule violations with --strict), 2 (bad
+  // input: the message names the file and line, the key or the option) and 3 only for an
+  // internal error, a bug to report
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version end the parse with success; every mistake on the command line is
+    // bad input
+    const int code = app.exit(e);
+    return code == 0 ? conesim::sim::kExitOk : conesim::sim::kExitBadInput;
   } catch (const conesim::core::InputError& e) {
     std::cerr << e.what() << "\n";
     return conesim::sim::kExitBadInput;
   } catch (const std::exception& e) {
-    std::cerr << "conesim: " << e.what() << "\n";
-    return 3;
+    std::cerr << "conesim: internal error: " << e.what() << "\n";
+    return conesim::sim::kExitInternalError;
+  } catch (...) {
+    std::cerr << "conesim: internal error: an exception of unknown type\n";
+    return conesim::sim::kExitInternalError;
   }
   return status;
 }

@@ -6,32 +6,7 @@ bin="$1"
 data="$2"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
-failures=0
-passed=0
-
-check() {  # check NAME EXPECTED_STATUS COMMAND... ; output in $work/out, $work/err
-  local name="$1" expected="$2"
-  shift 2
-  "$@" >"$work/out" 2>"$work/err"
-  local status=$?
-  if [ "$status" -ne "$expected" ]; then
-    echo "FAIL $name: exit $status, expected $expected"
-    sed 's/^/  stderr: /' "$work/err" | head -5
-    failures=$((failures + 1))
-    return 1
-  fi
-  passed=$((passed + 1))
-  return 0
-}
-expect_text() {  # expect_text NAME FILE REGEX
-  if ! grep -Eq -e "$3" "$2"; then
-    echo "FAIL $1: $(basename "$2") does not match /$3/"
-    head -5 "$2" | sed 's/^/  /'
-    failures=$((failures + 1))
-  else
-    passed=$((passed + 1))
-  fi
-}
+. "$(dirname "$0")/check_lib.sh"
 
 # version and help
 check version 0 "$bin" --version && expect_text version "$work/out" '^conesim [0-9]+\.[0-9]+'
@@ -84,10 +59,28 @@ check convert 0 "$bin" track convert "$data/tracks/pacsim/FSG19.yaml" "$work/fsg
 check convert_back 0 "$bin" track convert "$work/fsg19.csv" "$work/fsg19.yaml"
 check convert_read 0 "$bin" track validate "$work/fsg19.yaml"
 
+# convert errors name the target, never the temporary file beside it (issue 20 item 10)
+check convert_no_folder 2 "$bin" track convert "$data/tracks/eufs/skidpad.csv" "$work/no/such/x.csv"
+expect_text convert_no_folder "$work/err" 'no/such/x\.csv: cannot write'
+check convert_bad_ext 2 "$bin" track convert "$data/tracks/eufs/skidpad.csv" "$work/x.txt"
+expect_text convert_bad_ext "$work/err" "^$work/x\.txt: unknown extension"
+for f in convert_no_folder convert_bad_ext; do
+  if grep -q 'partial' "$work/err"; then echo "FAIL $f: names the temporary file"; failures=$((failures + 1)); fi
+done
+# a UTF-8 byte-order mark is no data; YAML nested absurdly deep is refused as such
+printf '\xef\xbb\xbf' >"$work/bom.csv"
+cat "$data/tracks/eufs/acceleration.csv" >>"$work/bom.csv"
+check bom_csv 0 "$bin" track validate "$work/bom.csv"
+printf 'cones_left: %s%s\n' "$(printf '[%.0s' $(seq 600))" "$(printf ']%.0s' $(seq 600))" >"$work/deep.yaml"
+check deep_yaml 2 "$bin" track validate "$work/deep.yaml"
+expect_text deep_yaml "$work/err" 'deep\.yaml:1: malformed YAML: nested [0-9]+ levels deep'
+
+check plot_no_folder 2 "$bin" track plot "$data/tracks/fssim/FSG.yaml" --out "$work/no/such/x.png"
+expect_text plot_no_folder "$work/err" 'x\.png: cannot write: no folder'
+
 if command -v gnuplot >/dev/null; then
   check plot 0 "$bin" track plot "$data/tracks/fssim/FSG.yaml" --out "$work/fsg.png"
   expect_text plot_png <(head -c 8 "$work/fsg.png" | od -c) 'P   N   G'
 fi
 
-echo "$passed passed, $failures failed"
-[ "$failures" -eq 0 ]
+report
