@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "control/driver.hpp"
+#include "sim/report.hpp"
 #include "sim/slam_runner.hpp"
 #include "sim/track_commands.hpp"
 #include "sim/vehicle_sim.hpp"
@@ -406,8 +407,14 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   }
   if (rig.perception() && options.plot)
     rig.perception()->write_plot(options.out_dir / "perception_bands.png");
-  if (slam && options.plot) slam->write_report(options.out_dir, m);
+  if (slam && options.plot) slam->write_report(options.out_dir);
   write_file_atomically(options.out_dir / "metrics.json", m.dump(2) + "\n");
+  // report.html from metrics.json: a run without it still has its verdict
+  try {
+    write_run_report(options.out_dir, m);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "warning: %s\n", e.what());
+  }
   return result;
 }
 
