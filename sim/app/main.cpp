@@ -222,6 +222,8 @@ void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
   cmd->add_option("--baseline", *baseline,
                   "A stored summary.json: exit 1 on a regression beyond the noise");
   cmd->add_flag("--no-plot", *no_plot, "Runs draw no pictures (faster; report.html has none)");
+  auto list = std::make_shared<bool>(false);
+  cmd->add_flag("--list", *list, "Print the runs (id and folder) and stop: nothing runs");
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;
     // the options, checked before any run starts
@@ -243,6 +245,14 @@ void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
     std::error_code ec;
     fs::path self = fs::read_symlink("/proc/self/exe", ec);
     if (ec) self = fs::absolute(argv[0]);
+    if (*list) {
+      const sim::RegressionPlan plan = sim::plan_regression(self, *o);
+      for (const auto& r : plan.runs) std::cout << r.id() << "  " << r.dir.string() << "\n";
+      for (const auto& t : plan.skipped)
+        std::cout << "skipped " << t.track << ": " << t.reason << "\n";
+      std::cout << plan.runs.size() << " runs\n";
+      return;
+    }
     status = sim::run_regression(self, *o, std::cout, std::cerr);
     std::cout << o->out_dir.string() << "\n";
   });
