@@ -231,11 +231,11 @@ std::string events_text(const RunRow& r) {
   return join(parts, "; ");
 }
 
-// the sources' commit, when they are a git checkout (cheap: one git call)
+// the sources' commit ("-dirty" with uncommitted changes), when they are a git checkout
 std::string source_commit() {
 #ifdef CONESIM_SOURCE_DIR
-  const std::string cmd =
-      "git -C '" + std::string(CONESIM_SOURCE_DIR) + "' rev-parse --short=12 HEAD 2>/dev/null";
+  const std::string cmd = "git -C '" + std::string(CONESIM_SOURCE_DIR) +
+                          "' describe --always --dirty --abbrev=12 2>/dev/null";
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return "";
   char buf[64] = {};

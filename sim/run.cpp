@@ -76,20 +76,20 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
     failures.push_back(std::to_string(r.off_course) + " off-course, at most " +
                        std::to_string(pass.max_off_course) + " allowed");
   if (pass.max_final_time_s > 0.0 && r.final_time_s > pass.max_final_time_s)
-    failures.push_back("final time " + std::to_string(r.final_time_s) + " s over " +
-                       std::to_string(pass.max_final_time_s) + " s");
+    failures.push_back("final time " + human_number(r.final_time_s) + " s over " +
+                       human_number(pass.max_final_time_s) + " s");
   // the SLAM estimate's quality
   if (slam_metrics.is_null()) return failures;
   auto figure = [&](const char* key) { return slam_metrics.at(key).get<double>(); };
   if (pass.max_map_rmse_m && figure("map_rmse_m") > *pass.max_map_rmse_m)
-    failures.push_back("SLAM map RMSE " + std::to_string(figure("map_rmse_m")) + " m over " +
-                       std::to_string(*pass.max_map_rmse_m) + " m");
+    failures.push_back("SLAM map RMSE " + human_number(figure("map_rmse_m")) + " m over " +
+                       human_number(*pass.max_map_rmse_m) + " m");
   if (pass.max_ate_rmse_m && figure("ate_rmse_m") > *pass.max_ate_rmse_m)
-    failures.push_back("SLAM trajectory RMSE " + std::to_string(figure("ate_rmse_m")) + " m over " +
-                       std::to_string(*pass.max_ate_rmse_m) + " m");
+    failures.push_back("SLAM trajectory RMSE " + human_number(figure("ate_rmse_m")) + " m over " +
+                       human_number(*pass.max_ate_rmse_m) + " m");
   if (pass.min_da_correct_fraction && figure("da_correct_fraction") < *pass.min_da_correct_fraction)
-    failures.push_back("SLAM associations " + std::to_string(figure("da_correct_fraction")) +
-                       " correct, at least " + std::to_string(*pass.min_da_correct_fraction) +
+    failures.push_back("SLAM associations " + human_number(figure("da_correct_fraction")) +
+                       " correct, at least " + human_number(*pass.min_da_correct_fraction) +
                        " required");
   if (pass.max_false_loop_closures && figure("false_loop_closures") > *pass.max_false_loop_closures)
     failures.push_back(std::to_string(static_cast<int>(figure("false_loop_closures"))) +

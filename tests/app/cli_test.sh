@@ -128,6 +128,12 @@ check regress_fail 1 "$bin" regress acceleration --track "$accel" --no-plot --ou
   --set pass.max_final_time_s=1
 expect_text regress_fail_reason "$work/out" '^ +final time .* over 1'
 expect_text regress_fail_junit "$work/rg4/junit.xml" '<failure type="fail" message="final time'
+# the corpus: each layout its own event, the malformed one skipped with its reason; nothing runs
+check regress_list 0 "$bin" regress --tracks corpus --generated 2 --list --out "$work/rg6"
+expect_text regress_list_skidpad "$work/out" '^skidpad \| pacsim/skidpad \| seed 1'
+expect_text regress_list_generated "$work/out" '^trackdrive \| generated/trackdrive-s2 \| seed 1'
+expect_text regress_list_skipped "$work/out" '^skipped eufs/track_created: .*track_created\.csv:79'
+if [ -e "$work/rg6/skidpad" ]; then echo "FAIL regress --list: a run started"; failures=$((failures + 1)); fi
 # bad input: exit 2 before any run
 check regress_unknown_scenario 2 "$bin" regress no-such-scenario --out "$work/rg5"
 check regress_bad_set 2 "$bin" regress acceleration --set driver.no_such_key=1 --out "$work/rg5"
