@@ -206,6 +206,12 @@ std::string xml_escape(std::string text) {
   return html_escape(text);
 }
 
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
 std::string join(const std::vector<std::string>& parts, const std::string& sep) {
   std::string out;
   for (size_t i = 0; i < parts.size(); ++i) out += (i ? sep : "") + parts[i];
@@ -418,7 +424,8 @@ RunRow make_row(const RegressionRun& run, const json& m, int exit_code,
   r.laps = m.value("laps", 0);
   for (const json& l : m.value("lap_times_s", json::array()))
     if (l.is_number() && !(l.get<double>() >= r.best_lap_s)) r.best_lap_s = l.get<double>();
-  r.final_time_s = number_or_nan(m, "final_time_s");
+  // a DNF has no final time (metrics.json gives 0)
+  if (m.value("completed", false)) r.final_time_s = number_or_nan(m, "final_time_s");
   r.lap_time_bound_s = number_or_nan(m, "lap_time_bound_s");
   if (std::isfinite(r.best_lap_s) && r.lap_time_bound_s > 0.0)
     r.bound_ratio = r.best_lap_s / r.lap_time_bound_s;
@@ -569,22 +576,53 @@ BaselineComparison compare_to_baseline(std::vector<RunRow>& rows,
   }
   for (const RunRow& b : baseline)
     if (!now.count(b.id)) c.missing.push_back(b.id);
+
+  // per scenario, the median SLAM figures over the runs both summaries have
+  std::map<std::string, std::vector<std::pair<const RunRow*, const RunRow*>>> pairs;
+  for (const RunRow& r : rows)
+    if (const auto it = before.find(r.id); it != before.end())
+      pairs[r.scenario].push_back({it->second, &r});
+  for (const auto& [scenario, list] : pairs) {
+    auto median_worse = [&](const char* what, double RunRow::*figure) {
+      std::vector<double> was, is;
+      for (const auto& [b, r] : list)
+        if (std::isfinite(b->*figure) && std::isfinite(r->*figure)) {
+          was.push_back(b->*figure);
+          is.push_back(r->*figure);
+        }
+      if (static_cast<int>(was.size()) < noise.median_min_runs) return;
+      const double m0 = median(was), m1 = median(is);
+      const double allowed =
+          std::max(noise.median_rmse_relative * m0, noise.median_rmse_absolute_m);
+      if (m1 - m0 <= allowed) return;
+      const std::string text = scenario + ": median " + what + " over " +
+                               std::to_string(was.size()) + " runs " + human_number(m0) + " -> " +
+                               human_number(m1) + " m (noise " + human_number(allowed) + " m)";
+      c.median_regressions.push_back(text);
+      c.regressions.push_back(text);
+    };
+    median_worse("SLAM map RMSE", &RunRow::map_rmse_m);
+    median_worse("SLAM trajectory RMSE", &RunRow::ate_rmse_m);
+  }
   return c;
 }
 
 std::string describe_noise(const BaselineNoise& n) {
-  char buf[800];
+  char buf[1200];
   std::snprintf(buf, sizeof(buf),
                 "A run that passed in the baseline and fails now is a regression. So is a figure "
                 "worse than the baseline's by more than its noise: best lap and final time by "
                 "more than max(%.0f %%, %.1f s); SLAM map and trajectory RMSE by more than "
-                "max(%.0f %%, %.2f m); the fraction of correct SLAM associations lower by more "
+                "max(%.0f %%, %.2f m) in a run, or their median over a scenario's runs (%d or "
+                "more) by more than max(%.0f %%, %.3f m); the fraction of correct SLAM "
+                "associations lower by more "
                 "than %.3f; perception recall or precision lower by more than %.2f; any more cones "
                 "hit or off-course "
                 "(a penalty is never noise). Runs are deterministic per seed on one build; the "
                 "noise is what a different machine, compiler or library build changes.",
                 n.time_relative * 100.0, n.time_absolute_s, n.rmse_relative * 100.0,
-                n.rmse_absolute_m, n.association_fraction_absolute, n.fraction_absolute);
+                n.rmse_absolute_m, n.median_min_runs, n.median_rmse_relative * 100.0,
+                n.median_rmse_absolute_m, n.association_fraction_absolute, n.fraction_absolute);
   return buf;
 }
 
@@ -626,15 +664,19 @@ json summary_json(const std::vector<RunRow>& rows, const RegressionPlan& plan,
           {"runs", runs}};
 }
 
-std::string junit_xml(const std::vector<RunRow>& rows, double wall_s) {
+std::string junit_xml(const std::vector<RunRow>& rows, double wall_s,
+                      const BaselineComparison* comparison) {
   int failures = 0;
   for (const RunRow& r : rows) failures += !r.passed || !r.regressions.empty();
+  const bool medians_regressed = comparison && !comparison->median_regressions.empty();
+  failures += medians_regressed;
+  const size_t tests = rows.size() + (comparison ? 1 : 0);
   std::ostringstream x;
   x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-    << "<testsuites name=\"conesim regress\" tests=\"" << rows.size() << "\" failures=\""
-    << failures << "\" errors=\"0\" time=\"" << fixed(wall_s, 3) << "\">\n"
-    << "  <testsuite name=\"conesim regress\" tests=\"" << rows.size() << "\" failures=\""
-    << failures << "\" errors=\"0\" skipped=\"0\" time=\"" << fixed(wall_s, 3) << "\" timestamp=\""
+    << "<testsuites name=\"conesim regress\" tests=\"" << tests << "\" failures=\"" << failures
+    << "\" errors=\"0\" time=\"" << fixed(wall_s, 3) << "\">\n"
+    << "  <testsuite name=\"conesim regress\" tests=\"" << tests << "\" failures=\"" << failures
+    << "\" errors=\"0\" skipped=\"0\" time=\"" << fixed(wall_s, 3) << "\" timestamp=\""
     << utc_now().substr(0, 19) << "\">\n";
   for (const RunRow& r : rows) {
     const std::string track = r.track.empty() ? "scenario track" : r.track;
@@ -654,6 +696,17 @@ std::string junit_xml(const std::vector<RunRow>& rows, double wall_s) {
     if (!where.empty()) x << xml_escape("\npenalties: " + where);
     if (!r.dnf_reason.empty()) x << xml_escape("\nDNF: " + r.dnf_reason);
     x << xml_escape("\nrun folder: " + r.dir) << "</failure>\n    </testcase>\n";
+  }
+  if (comparison) {
+    x << "    <testcase classname=\"baseline\" name=\"medians\" time=\"0\"";
+    if (medians_regressed) {
+      const std::string why = join(comparison->median_regressions, "; ");
+      x << ">\n      <failure type=\"regression\" message=\"" << xml_escape(why) << "\">"
+        << xml_escape(join(comparison->median_regressions, "\n"))
+        << "</failure>\n    </testcase>\n";
+    } else {
+      x << "/>\n";
+    }
   }
   x << "  </testsuite>\n</testsuites>\n";
   return x.str();
@@ -786,8 +839,10 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
   const RegressionPlan plan = plan_regression(self, o);
   for (const SkippedTrack& s : plan.skipped)
     progress << "skipped track " << s.track << ": " << s.reason << "\n";
-  progress << plan.runs.size() << " runs, " << o.jobs << " at once, into " << o.out_dir.string()
-           << "\n";
+  progress << plan.runs.size() << " runs, " << o.jobs << " at once, into " << o.out_dir.string();
+  if (plan.event_mismatches > 0)
+    progress << " (" << plan.event_mismatches << " scenario-track pairs left out: events differ)";
+  progress << "\n";
 
   // run them, at most `jobs` at once
   const std::vector<RegressionRun>& runs = plan.runs;
@@ -853,7 +908,7 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
   const BaselineComparison* c = comparison ? &*comparison : nullptr;
   std::ofstream(o.out_dir / "summary.json")
       << summary_json(rows, plan, o, wall_s, c).dump(2) << "\n";
-  std::ofstream(o.out_dir / "junit.xml") << junit_xml(rows, wall_s);
+  std::ofstream(o.out_dir / "junit.xml") << junit_xml(rows, wall_s, c);
   std::ofstream(o.out_dir / "summary.html") << summary_html(rows, plan, o, wall_s, c);
   print_table(rows, out);
   int failed = 0;
