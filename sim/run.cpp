@@ -8,6 +8,7 @@
 
 #include "control/driver.hpp"
 #include "core/error.hpp"
+#include "sim/report.hpp"
 #include "sim/slam_runner.hpp"
 #include "sim/track_commands.hpp"
 #include "sim/vehicle_sim.hpp"
@@ -76,8 +77,8 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
     failures.push_back(std::to_string(r.off_course) + " off-course, at most " +
                        std::to_string(pass.max_off_course) + " allowed");
   if (pass.max_final_time_s > 0.0 && r.final_time_s > pass.max_final_time_s)
-    failures.push_back("final time " + std::to_string(r.final_time_s) + " s over " +
-                       std::to_string(pass.max_final_time_s) + " s");
+    failures.push_back("final time " + human_number(r.final_time_s) + " s over " +
+                       human_number(pass.max_final_time_s) + " s");
   // the SLAM estimate's quality; a figure with nothing measured (null: no landmark matched a
   // true cone, no association, no update) fails the criterion on it
   if (slam_metrics.is_null()) return failures;
@@ -85,7 +86,7 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
                    const char* why_null) {
     const nlohmann::json& v = slam_metrics.at(key);
     const std::string rule =
-        std::string(at_most ? "at most " : "at least ") + std::to_string(bound) + " required";
+        std::string(at_most ? "at most " : "at least ") + human_number(bound) + " required";
     if (v.is_null()) {
       failures.push_back(std::string(what) + " not measured (" + key + " is null: " + why_null +
                          "), " + rule);
@@ -93,7 +94,7 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
     }
     const double x = v.get<double>();
     if (at_most ? x > bound : x < bound)
-      failures.push_back(std::string(what) + " " + std::to_string(x) + ", " + rule);
+      failures.push_back(std::string(what) + " " + human_number(x) + ", " + rule);
   };
   if (pass.max_map_rmse_m)
     limit("map_rmse_m", "SLAM map RMSE [m]", true, *pass.max_map_rmse_m,
@@ -444,8 +445,10 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     if (rig.perception())
       picture("perception_bands.png",
               [&] { rig.perception()->write_plot(options.out_dir / "perception_bands.png"); });
-    if (slam) picture("the SLAM report", [&] { slam->write_report(options.out_dir, m); });
+    if (slam) picture("the SLAM figures", [&] { slam->write_report(options.out_dir); });
   }
+  // report.html from metrics.json, verdict first: every run has one, pictures or not
+  picture("report.html", [&] { write_run_report(options.out_dir, m); });
   return result;
 }
 

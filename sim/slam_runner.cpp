@@ -489,8 +489,7 @@ nlohmann::json SlamRunner::metrics() const {
   };
 }
 
-void SlamRunner::write_report(const std::filesystem::path& dir,
-                              const nlohmann::json& run_metrics) const {
+void SlamRunner::write_report(const std::filesystem::path& dir) const {
   // map.csv: every estimated cone with the true cone it stands for
   const std::vector<MapMatch> matches = match_map();
   {
@@ -579,50 +578,6 @@ void SlamRunner::write_report(const std::filesystem::path& dir,
                  "set title 'position error of the estimate over distance (no alignment)'\n"
                  "plot $error using 1:2 with lines lw 1.5 lc rgb '#d62728' notitle\n",
              {error}, dir / "slam_error.png", 1000, 500);
-
-  // the page: the run, the backend's figures, the figures
-  std::ofstream html(dir / "report.html");
-  html << "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>conesim report: "
-       << run_metrics.value("scenario", std::string()) << "</title>\n"
-       << "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
-          "td,th{border:1px solid #ccc;padding:4px 8px;text-align:left}</style></head><body>\n"
-       << "<h1>" << run_metrics.value("event", std::string()) << " on "
-       << run_metrics.value("track", std::string()) << " (seed " << run_metrics.value("seed", 0)
-       << ")</h1>\n<table>\n";
-  for (const char* key :
-       {"completed", "dnf_reason", "laps", "final_time_s", "penalties", "real_time_factor"})
-    if (run_metrics.contains(key))
-      html << "<tr><th>" << key << "</th><td>" << run_metrics[key].dump() << "</td></tr>\n";
-  html << "</table>\n<h2>SLAM: " << name() << "</h2>\n<table>\n";
-  const nlohmann::json figures = metrics();
-  for (const auto& [key, value] : figures.items())
-    if (key != "by_class")
-      html << "<tr><th>" << key << "</th><td>" << value.dump() << "</td></tr>\n";
-  html
-      << "</table>\n<h3>Map per class</h3>\n<table>\n"
-         "<tr><th>class</th><th>matched</th><th>missed</th><th>spurious</th><th>rmse_m</th></tr>\n";
-  for (const auto& [cls, f] : figures["by_class"].items())
-    html << "<tr><th>" << cls << "</th><td>" << f["matched"].dump() << "</td><td>"
-         << f["missed"].dump() << "</td><td>" << f["spurious"].dump() << "</td><td>"
-         << f["rmse_m"].dump() << "</td></tr>\n";
-  html << "</table>\n"
-       << "<h2>Map over ground truth</h2><img src=\"slam_map.png\" width=\"900\">\n"
-       << "<h2>Map error per class over distance</h2>"
-          "<img src=\"slam_map_error.png\" width=\"900\">\n"
-       << "<h2>Trajectory</h2><img src=\"slam_trajectory.png\" width=\"900\">\n"
-       << "<img src=\"slam_error.png\" width=\"900\">\n"
-       << "<h2>Run</h2><img src=\"run.png\" width=\"900\">\n";
-  // raw-data perception: its headline figures and the range bands
-  if (run_metrics.contains("perception") && run_metrics["perception"].contains("bands")) {
-    const nlohmann::json& p = run_metrics["perception"];
-    html << "<h2>Perception: " << p.value("mode", std::string()) << "</h2>\n<table>\n";
-    for (const char* key : {"recall_15m", "precision_15m", "colour_accuracy_10m", "recall",
-                            "precision", "colour_accuracy", "position_rmse_m", "frames"})
-      if (p.contains(key))
-        html << "<tr><th>" << key << "</th><td>" << p[key].dump() << "</td></tr>\n";
-    html << "</table>\n<img src=\"perception_bands.png\" width=\"900\">\n";
-  }
-  html << "</body></html>\n";
 }
 
 }  // namespace conesim::sim

@@ -96,9 +96,9 @@ class SlamRunner {
     return map_error_over_distance_;
   }
 
-  /// Writes map.csv, map_error.csv, the map, map-error and trajectory figures and report.html
-  /// into the run directory.
-  void write_report(const std::filesystem::path& dir, const nlohmann::json& run_metrics) const;
+  /// Writes map.csv, map_error.csv and the map, map-error and trajectory figures into the run
+  /// directory (report.html, written by sim/report from metrics.json, shows them).
+  void write_report(const std::filesystem::path& dir) const;
 
   std::string name() const { return backend_->name(); }
 

@@ -206,25 +206,69 @@ void add_run_command(CLI::App& app, int& status) {
 }
 
 // `conesim regress ...`
-void add_regress_command(CLI::App& app, int& status, const char* argv0) {
-  auto* cmd = app.add_subcommand("regress", "Run the shipped scenarios over several seeds");
-  auto jobs = std::make_shared<int>(2);
-  auto scenarios = std::make_shared<std::vector<std::string>>();
-  auto out = std::make_shared<fs::path>();
-  cmd->add_option("SCENARIO", *scenarios, "Scenarios to run (default: all four events)");
-  cmd->add_option("--jobs,-j", *jobs, "Runs at once")->check(CLI::Range(1, 64));
-  cmd->add_option("--out", *out, "Folder of the runs (default runs/regress-<UTC stamp>)");
+void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
+  auto* cmd = app.add_subcommand(
+      "regress",
+      "Run scenarios x tracks x seeds in parallel processes; write summary.json, junit.xml and "
+      "summary.html. Exit 0 when every run passed (and nothing regressed against --baseline), "
+      "1 when not, 2 for bad input");
+  auto o = std::make_shared<conesim::sim::RegressOptions>();
+  auto seeds = std::make_shared<std::string>();
+  auto generated = std::make_shared<std::string>();
+  auto baseline = std::make_shared<fs::path>();
+  auto no_plot = std::make_shared<bool>(false);
+  o->jobs = std::max(1, static_cast<int>(sysconf(_SC_NPROCESSORS_ONLN)));
+  cmd->add_option("SCENARIO", o->scenarios,
+                  "Scenarios to run (default: the shipped events and GraphSLAM scenarios; on "
+                  "given tracks, each track's own event)");
+  cmd->add_option("--track", o->track_files, "Run on this track file (repeatable)");
+  cmd->add_option("--tracks", o->track_sets,
+                  "A folder of track files, a list file (one path a line), or `corpus` (the "
+                  "public layouts shipped in tests/data/tracks); repeatable");
+  cmd->add_option("--generated", *generated,
+                  "N[:PROFILE]: also N generated circuits, seeds 1..N (`conesim track generate "
+                  "--event trackdrive`, with --profile PROFILE when given)");
+  cmd->add_option("--seeds", *seeds, "Seeds of every run: 1,2,3 or 1-5 (default: per scenario)");
+  cmd->add_option("--set", o->sets, "Override a scenario value in every run: key.path=value");
+  cmd->add_option("--jobs,-j", o->jobs, "Runs at once (default: the number of cores)")
+      ->check(CLI::Range(1, 256));
+  cmd->add_option("--out", o->out_dir, "Folder of the runs (default runs/regress-<UTC stamp>)");
+  cmd->add_option("--baseline", *baseline,
+                  "A stored summary.json: exit 1 on a regression beyond the noise");
+  cmd->add_flag("--no-plot", *no_plot, "Runs draw no pictures (faster; report.html has none)");
+  auto list = std::make_shared<bool>(false);
+  cmd->add_flag("--list", *list, "Print the runs (id and folder) and stop: nothing runs");
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;
-    for (const auto& name : *scenarios) sim::find_scenario(name);  // fail early on a typo
-    const fs::path dir = out->empty() ? sim::make_run_dir("runs", "regress") : *out;
+    // the options, checked before any run starts
+    if (!seeds->empty()) o->seeds = sim::parse_seeds(*seeds);
+    if (!generated->empty()) {
+      const size_t colon = generated->find(':');
+      const std::string count = generated->substr(0, colon);
+      if (count.empty() || count.find_first_not_of("0123456789") != std::string::npos ||
+          count.size() > 5)
+        throw conesim::core::InputError("--generated", 0,
+                                        "expected N or N:PROFILE, got '" + *generated + "'");
+      o->generated = std::stoi(count);
+      if (colon != std::string::npos) o->generated_profile = generated->substr(colon + 1);
+    }
+    if (!baseline->empty()) o->baseline = *baseline;
+    o->plot = !*no_plot;
+    for (int i = 0; i < argc; ++i) o->command_line += (i ? " " : "") + std::string(argv[i]);
+    if (o->out_dir.empty()) o->out_dir = sim::make_run_dir("runs", "regress");
     std::error_code ec;
     fs::path self = fs::read_symlink("/proc/self/exe", ec);
-    if (ec) self = fs::absolute(argv0);
-    const int failed =
-        sim::run_regression(self, sim::default_regression(*scenarios), *jobs, dir, std::cout);
-    std::cout << dir.string() << "\n";
-    status = failed == 0 ? 0 : 1;
+    if (ec) self = fs::absolute(argv[0]);
+    if (*list) {
+      const sim::RegressionPlan plan = sim::plan_regression(self, *o);
+      for (const auto& r : plan.runs) std::cout << r.id() << "  " << r.dir.string() << "\n";
+      for (const auto& t : plan.skipped)
+        std::cout << "skipped " << t.track << ": " << t.reason << "\n";
+      std::cout << plan.runs.size() << " runs\n";
+      return;
+    }
+    status = sim::run_regression(self, *o, std::cout, std::cerr);
+    std::cout << o->out_dir.string() << "\n";
   });
 }
 
@@ -281,7 +325,7 @@ int main(int argc, char** argv) {
   int status = 0;
   add_track_commands(app, status);
   add_run_command(app, status);
-  add_regress_command(app, status, argv[0]);
+  add_regress_command(app, status, argc, argv);
   add_vehicle_commands(app);
   add_bench_commands(app);
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# End-to-end checks of the `conesim track` commands as a user runs them.
+# End-to-end checks of the `conesim track` and `conesim regress` commands as a user runs them.
 # usage: cli_test.sh CONESIM_BINARY TEST_DATA_DIR
 set -uo pipefail
 bin="$1"
@@ -82,5 +82,62 @@ if command -v gnuplot >/dev/null; then
   check plot 0 "$bin" track plot "$data/tracks/fssim/FSG.yaml" --out "$work/fsg.png"
   expect_text plot_png <(head -c 8 "$work/fsg.png" | od -c) 'P   N   G'
 fi
+
+# regress: a tiny sweep, its three summaries, the baseline and the exit codes
+accel="$data/tracks/fssim/acceleration.yaml"
+check regress 0 "$bin" regress acceleration --track "$accel" --seeds 1-2 --jobs 2 --no-plot \
+  --out "$work/rg"
+for f in summary.json junit.xml summary.html acceleration/acceleration-s1/metrics.json \
+  acceleration/acceleration-s2/report.html; do
+  [ -s "$work/rg/$f" ] || { echo "FAIL regress: no $f"; failures=$((failures + 1)); }
+done
+expect_text regress_summary "$work/rg/summary.json" '"passed": 2'
+if command -v python3 >/dev/null; then
+  python3 - "$work/rg/junit.xml" <<'PY' || { echo "FAIL regress_junit"; failures=$((failures + 1)); }
+import sys, xml.etree.ElementTree as ET
+root = ET.parse(sys.argv[1]).getroot()
+cases = root.findall("./testsuite/testcase")
+assert root.tag == "testsuites" and len(cases) == 2, (root.tag, len(cases))
+assert all(c.get("classname") == "acceleration" for c in cases)
+PY
+fi
+# the same runs against their own summary: no regression
+check regress_baseline 0 "$bin" regress acceleration --track "$accel" --seeds 1-2 --no-plot \
+  --out "$work/rg2" --baseline "$work/rg/summary.json"
+# a baseline 10 % faster: the runs regressed
+python3 - "$work/rg/summary.json" "$work/faster.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+for r in s["runs"]:
+    r["best_lap_s"] *= 0.9
+    r["final_time_s"] *= 0.9
+json.dump(s, open(sys.argv[2], "w"))
+PY
+check regress_regressed 1 "$bin" regress acceleration --track "$accel" --seeds 1 --no-plot \
+  --out "$work/rg3" --baseline "$work/faster.json"
+expect_text regress_regressed "$work/out" 'regression: best lap'
+expect_text regress_regressed_missing "$work/out" 'missing: acceleration \| acceleration \| seed 2'
+# a pass criterion it cannot meet: FAIL with the reason and the threshold
+check regress_fail 1 "$bin" regress acceleration --track "$accel" --no-plot --out "$work/rg4" \
+  --set pass.max_final_time_s=1
+expect_text regress_fail_reason "$work/out" '^ +final time .* over 1'
+expect_text regress_fail_junit "$work/rg4/junit.xml" '<failure type="fail" message="final time'
+# the corpus: each layout its own event, the malformed one skipped with its reason; nothing runs
+check regress_list 0 "$bin" regress --tracks corpus --generated 2 --list --out "$work/rg6"
+expect_text regress_list_skidpad "$work/out" '^skidpad \| pacsim/skidpad \| seed 1'
+expect_text regress_list_generated "$work/out" '^trackdrive \| generated/trackdrive-s2 \| seed 1'
+expect_text regress_list_skipped "$work/out" '^skipped eufs/track_created: .*track_created\.csv:79'
+if [ -e "$work/rg6/skidpad" ]; then echo "FAIL regress --list: a run started"; failures=$((failures + 1)); fi
+# bad input: exit 2 before any run
+check regress_unknown_scenario 2 "$bin" regress no-such-scenario --out "$work/rg5"
+check regress_bad_set 2 "$bin" regress acceleration --set driver.no_such_key=1 --out "$work/rg5"
+check regress_bad_track 2 "$bin" regress acceleration --track "$work/missing.csv" --out "$work/rg5"
+check regress_malformed_track 2 "$bin" regress autocross \
+  --track "$data/tracks/eufs/track_created.csv" --out "$work/rg5"
+check regress_bad_seeds 2 "$bin" regress acceleration --seeds 3-1 --out "$work/rg5"
+check regress_bad_tracks 2 "$bin" regress --tracks "$work/no-such-folder" --out "$work/rg5"
+check regress_bad_baseline 2 "$bin" regress acceleration --baseline "$work/missing.json" \
+  --out "$work/rg5"
+if [ -e "$work/rg5/acceleration" ]; then echo "FAIL regress bad input: a run started"; failures=$((failures + 1)); fi
 
 report
