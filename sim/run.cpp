@@ -104,6 +104,9 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
   if (pass.min_da_correct_fraction)
     limit("da_correct_fraction", "SLAM correct association fraction", false,
           *pass.min_da_correct_fraction, "no observation was associated with a landmark");
+  if (pass.max_map_missed_fraction)
+    limit("map_missed_fraction", "SLAM map missed fraction of the cones in view", true,
+          *pass.max_map_missed_fraction, "no true cone was ever in the perception's view");
   if (pass.max_false_loop_closures &&
       slam_metrics.at("false_loop_closures").get<int>() > *pass.max_false_loop_closures)
     failures.push_back(std::to_string(slam_metrics.at("false_loop_closures").get<int>()) +

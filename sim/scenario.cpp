@@ -613,20 +613,18 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
       {"pass",
        [&](const YAML::Node& n) {
          const Where w{&context, "pass"};
-         read_section(n, w,
-                      {{"completed",
-                        [&](const YAML::Node& v) {
-                          s.pass.completed = read_bool(v, w, "completed");
-                        }},
-                       integer("max_cones_hit", s.pass.max_cones_hit, w),
-                       integer("max_off_course", s.pass.max_off_course, w),
-                       number("max_final_time_s", s.pass.max_final_time_s, w),
-                       optional_number("max_map_rmse_m", s.pass.max_map_rmse_m, w),
-                       optional_number("max_ate_rmse_m", s.pass.max_ate_rmse_m, w),
-                       optional_number("min_da_correct_fraction", s.pass.min_da_correct_fraction,
-                                       w),
-                       optional_integer("max_false_loop_closures",
-                                        s.pass.max_false_loop_closures, w)});
+         read_section(
+             n, w,
+             {{"completed",
+               [&](const YAML::Node& v) { s.pass.completed = read_bool(v, w, "completed"); }},
+              integer("max_cones_hit", s.pass.max_cones_hit, w),
+              integer("max_off_course", s.pass.max_off_course, w),
+              number("max_final_time_s", s.pass.max_final_time_s, w),
+              optional_number("max_map_rmse_m", s.pass.max_map_rmse_m, w),
+              optional_number("max_ate_rmse_m", s.pass.max_ate_rmse_m, w),
+              optional_number("min_da_correct_fraction", s.pass.min_da_correct_fraction, w),
+              optional_integer("max_false_loop_closures", s.pass.max_false_loop_closures, w),
+              optional_number("max_map_missed_fraction", s.pass.max_map_missed_fraction, w)});
        }},
   };
   read_section(root, top, fields);
@@ -672,14 +670,17 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
     context.fail("pass.min_da_correct_fraction", "expected a fraction from 0 to 1");
   if (s.pass.max_false_loop_closures && *s.pass.max_false_loop_closures < 0)
     context.fail("pass.max_false_loop_closures", "expected a count >= 0");
+  if (s.pass.max_map_missed_fraction &&
+      !(*s.pass.max_map_missed_fraction >= 0.0 && *s.pass.max_map_missed_fraction <= 1.0))
+    context.fail("pass.max_map_missed_fraction", "expected a fraction from 0 to 1");
   {
     const PassCriteria& p = s.pass;
-    const bool slam_criteria = p.max_map_rmse_m || p.max_ate_rmse_m ||
-                               p.min_da_correct_fraction || p.max_false_loop_closures;
+    const bool slam_criteria = p.max_map_rmse_m || p.max_ate_rmse_m || p.min_da_correct_fraction ||
+                               p.max_false_loop_closures || p.max_map_missed_fraction;
     if (slam_criteria && s.slam == "none")
       context.fail("pass",
                    "SLAM criteria (max_map_rmse_m, max_ate_rmse_m, min_da_correct_fraction, "
-                   "max_false_loop_closures) need slam: graph");
+                   "max_false_loop_closures, max_map_missed_fraction) need slam: graph");
   }
   if (!(s.start_delay_s >= 0.0 && s.start_delay_s <= 60.0))
     context.fail("start_delay_s", "expected a delay from 0 to 60 s");

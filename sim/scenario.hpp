@@ -66,6 +66,9 @@ struct PassCriteria {
   std::optional<double> max_ate_rmse_m;
   std::optional<double> min_da_correct_fraction;
   std::optional<int> max_false_loop_closures;
+  /// The largest share of the true cones in the perception's view that the map may miss
+  /// (metrics.json slam.<backend>.map_missed_fraction: map_missed / map_cones_in_view).
+  std::optional<double> max_map_missed_fraction;
 };
 
 /// One scenario, fully resolved.

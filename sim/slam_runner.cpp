@@ -462,6 +462,8 @@ nlohmann::json SlamRunner::metrics() const {
       {"map_missed", missed},
       {"map_spurious", static_cast<int>(e.map.size()) - matched},
       {"map_cones_in_view", in_view},
+      {"map_missed_fraction",
+       in_view ? nlohmann::json(static_cast<double>(missed) / in_view) : nlohmann::json()},
       {"map_cones_observed", observed},
       {"map_class_wrong", class_wrong},
       {"map_rmse_aligned_m", number_or_null(rms(aligned_err2))},

@@ -65,7 +65,8 @@ class SlamRunner {
   /// cone, ate_rmse_m without an update, da_correct_fraction without an association.
   /// map_missed counts the true cones that were within the perception's range and field of
   /// view of the true pose at some moment of the run (checked every 50 ms of sim time) and that
-  /// no map landmark was matched to (one to one within 1 m); map_cones_in_view counts them all.
+  /// no map landmark was matched to (one to one within 1 m); map_cones_in_view counts them all,
+  /// map_missed_fraction is map_missed / map_cones_in_view (null when none was in view).
   nlohmann::json metrics() const;
 
   /// An estimated map cone and the true cone it stands for (-1: spurious).

@@ -105,6 +105,7 @@ expect_text blind_slam "$work/out" '^fail: SLAM correct association fraction .*n
 expect_text blind_slam "$work/blind/metrics.json" '"map_rmse_m": null'
 expect_text blind_slam "$work/blind/metrics.json" '"da_correct_fraction": null'
 expect_text blind_slam "$work/blind/metrics.json" '"map_missed": [1-9][0-9]*,'
+expect_text blind_slam "$work/out" '^fail: SLAM map missed fraction of the cones in view 1(\.0+)?, at most'
 check seeing_slam 0 "$bin" run acceleration-graphslam --no-plot --out "$work/seeing"
 expect_text seeing_slam "$work/seeing/metrics.json" '"map_missed": 0,'
 

@@ -100,6 +100,12 @@ TEST_F(ScenarioFile, BadInputNamesFileLineAndKey) {
             std::string::npos);
   EXPECT_NE(error_of(slam + "pass: {max_false_loop_closures: x}\n").find("max_false_loop_closures"),
             std::string::npos);
+  EXPECT_NE(error_of(slam + "pass: {max_map_missed_fraction: 2}\n")
+                .find("pass.max_map_missed_fraction: expected a fraction"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of("event: autocross\npass: {max_map_missed_fraction: 0.1}\n").find("need slam: graph"),
+      std::string::npos);
   EXPECT_NE(error_of("event: autocross\npass: {max_ate_rmse_m: 0.2}\n").find("need slam: graph"),
             std::string::npos);
   // the SLAM latency: a time from 0 to 1 s
