@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "control/driver.hpp"
+#include "sim/lap_time_report.hpp"
 #include "sim/slam_runner.hpp"
 #include "sim/track_commands.hpp"
 #include "sim/vehicle_sim.hpp"
@@ -96,7 +97,8 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
 
 tracks::Track scenario_track(const Scenario& s) {
   if (s.track.file) return tracks::read_track(*s.track.file);
-  return make_event_track(s.event, s.track.generate_seed.value_or(s.seed));
+  return make_event_track(s.event, s.track.generate_seed.value_or(s.seed),
+                          s.track.generate_profile);
 }
 
 core::ConeObservations perceive_ground_truth(const tracks::Track& track, const core::Pose2& pose,
@@ -166,6 +168,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   std::vector<char> seen(static_cast<size_t>(track.next_id()), 0);
   std::vector<core::MapCone> map;
   std::vector<core::Vec2> driven;
+  std::vector<double> driven_speed_mps;
   std::string trajectory =
       "t_s,x_m,y_m,yaw_rad,speed_mps,steer_rad,accel_cmd_mps2,est_x_m,est_y_m,est_yaw_rad\n";
   auto is_knocked = [&referee](int id) { return referee.is_knocked(id); };
@@ -244,6 +247,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     if (t % trajectory_period_us == 0) {
       const VehicleTruth truth = car.truth();
       driven.push_back(truth.pose.position());
+      driven_speed_mps.push_back(truth.vx_mps);
       char row[200];
       std::snprintf(row, sizeof(row), "%.3f,%.4f,%.4f,%.5f,%.3f,%.5f,%.3f,%.4f,%.4f,%.5f\n",
                     core::to_seconds(t), truth.pose.x, truth.pose.y, truth.pose.yaw, truth.vx_mps,
@@ -321,6 +325,11 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
          round_to(rig.stats().stereo_detect_ms_total / std::max(1, rig.stats().camera_frames),
                   1e-3)}}},
   };
+  // the lap-time bound at the car's full measured grip beside the lap times
+  laptime::LapTimeOptions bound_options;
+  bound_options.event = s.event;
+  const laptime::LapTimeBound bound = laptime::lap_time_bound(track, vp, bound_options);
+  add_lap_time_bound(m, bound, lap_times);
   result.metrics = m;
 
   // the other outputs first, metrics.json last: a run without it did not finish
@@ -339,6 +348,16 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     rig.perception()->write_plot(options.out_dir / "perception_bands.png");
   if (slam && options.plot) slam->write_report(options.out_dir, m);
   write_file_atomically(options.out_dir / "metrics.json", m.dump(2) + "\n");
+  // the driven speed against the bound's (after metrics.json: a failed plot only warns)
+  if (options.plot && bound.usable) {
+    try {
+      plot_speed(bound, driven_laps(bound, driven, driven_speed_mps, track.closed),
+                 track.name + ": speed over distance against the lap-time bound",
+                 options.out_dir / "speed.png");
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "warning: speed.png: %s\n", e.what());
+    }
+  }
   return result;
 }
 

@@ -206,6 +206,17 @@ void apply_override(YAML::Node& root, const std::string& assignment, const std::
   chain.back()[keys.back()] = value;
 }
 
+// a generator profile by name (tracks::profile_from_string)
+tracks::GeneratorProfile read_profile(const YAML::Node& n, const Where& w, const std::string& key) {
+  const std::string name = read_string(n, w, key);
+  if (const auto p = tracks::profile_from_string(name)) return *p;
+  std::string names;
+  for (tracks::GeneratorProfile p : tracks::all_profiles())
+    names += (names.empty() ? "" : ", ") + std::string(tracks::to_string(p));
+  throw InputError(w.file, w.line(n),
+                   w.key(key) + ": expected one of " + names + ", got '" + name + "'");
+}
+
 uint64_t read_seed(const YAML::Node& n, const Where& w, const std::string& key) {
   const int64_t v = read_integer(n, w, key);
   if (v < 0) throw InputError(w.file, w.line(n), w.key(key) + ": expected a seed >= 0");
@@ -316,9 +327,14 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                        {"generate", [&](const YAML::Node& v) {
                           const Where g{fname, "track.generate"};
                           if (v.IsNull()) return;
-                          read_section(v, g, {{"seed", [&](const YAML::Node& x) {
-                                                 generate_seed = read_seed(x, g, "seed");
-                                               }}});
+                          read_section(v, g,
+                                       {{"seed",
+                                         [&](const YAML::Node& x) {
+                                           generate_seed = read_seed(x, g, "seed");
+                                         }},
+                                        {"profile", [&](const YAML::Node& x) {
+                                           s.track.generate_profile = read_profile(x, g, "profile");
+                                         }}});
                           if (!generate_seed) generate_seed = std::numeric_limits<uint64_t>::max();
                         }}});
        }},
