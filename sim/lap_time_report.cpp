@@ -114,7 +114,7 @@ void plot_speed(const laptime::LapTimeBound& bound, const std::vector<SpeedSerie
          << "set xlabel 'distance from the timing line [m]'\nset ylabel 'speed [m/s]'\n"
          << "set yrange [0:*]\n"
          << "plot " << plots.str() << "\n";
-  render_png(script.str(), data, out_png);
+  render_png(script.str(), data, out_png, 1400, 700);
 }
 
 }  // namespace conesim::sim

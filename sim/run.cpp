@@ -97,8 +97,9 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
 
 tracks::Track scenario_track(const Scenario& s) {
   if (s.track.file) return tracks::read_track(*s.track.file);
-  return make_event_track(s.event, s.track.generate_seed.value_or(s.seed),
-                          s.track.generate_profile);
+  tracks::GeneratorParams circuit;
+  circuit.profile = s.track.generate_profile;
+  return make_event_track(s.event, s.track.generate_seed.value_or(s.seed), circuit);
 }
 
 core::ConeObservations perceive_ground_truth(const tracks::Track& track, const core::Pose2& pose,
@@ -351,7 +352,9 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   // the driven speed against the bound's (after metrics.json: a failed plot only warns)
   if (options.plot && bound.usable) {
     try {
-      plot_speed(bound, driven_laps(bound, driven, driven_speed_mps, track.closed),
+      std::vector<SpeedSeries> laps = driven_laps(bound, driven, driven_speed_mps, track.closed);
+      if (laps.size() > r.lap_times_s.size()) laps.resize(r.lap_times_s.size());  // the run-out
+      plot_speed(bound, laps,
                  track.name + ": speed over distance against the lap-time bound",
                  options.out_dir / "speed.png");
     } catch (const std::exception& e) {

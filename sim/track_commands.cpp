@@ -81,8 +81,7 @@ nlohmann::json track_info(const Track& track, std::optional<EventType> event) {
   };
 }
 
-Track make_event_track(EventType event, uint64_t seed, tracks::GeneratorProfile profile,
-                       tracks::TravelDirection direction) {
+Track make_event_track(EventType event, uint64_t seed, tracks::GeneratorParams circuit) {
   switch (event) {
     case EventType::kSkidpad:
       return tracks::make_skidpad();
@@ -92,11 +91,8 @@ Track make_event_track(EventType event, uint64_t seed, tracks::GeneratorProfile 
     case EventType::kTrackdrive:
       break;
   }
-  tracks::GeneratorParams params;
-  params.event = event;
-  params.profile = profile;
-  params.direction = direction;
-  return tracks::generate_circuit(seed, params);
+  circuit.event = event;
+  return tracks::generate_circuit(seed, circuit);
 }
 
 int track_corpus(const CorpusOptions& options, std::ostream& out, std::ostream& err) {
@@ -115,6 +111,7 @@ int track_corpus(const CorpusOptions& options, std::ostream& out, std::ostream& 
     params.event = event;
     params.profile = profile;
     params.direction = options.direction;
+    params.hairpin_outer_diameter_m = options.hairpin_outer_diameter_m;
     tracks::GenerationReport report;
     Track track;
     try {
@@ -323,7 +320,7 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
          << "set size ratio -1\nset grid\nset key outside right top\n"
          << "set xlabel 'x [m]'\nset ylabel 'y [m]'\n"
          << "plot " << plots.str() << "\n";
-  render_png(script.str(), data, out_png, 1400, 600);
+  render_png(script.str(), data, out_png);
 }
 
 }  // namespace conesim::sim

@@ -33,12 +33,10 @@ int track_validate(const std::vector<std::filesystem::path>& files,
 /// violations, plus event, closed and warnings.
 nlohmann::json track_info(const tracks::Track& track, std::optional<tracks::EventType> event);
 
-/// Makes the layout of an event: the FSG skidpad or acceleration, or a generated circuit of a
-/// profile and direction of travel.
-tracks::Track make_event_track(
-    tracks::EventType event, uint64_t seed,
-    tracks::GeneratorProfile profile = tracks::GeneratorProfile::kStandard,
-    tracks::TravelDirection direction = tracks::TravelDirection::kFromSeed);
+/// Makes the layout of an event: the FSG skidpad or acceleration, or a generated circuit drawn
+/// with `circuit` (its event is replaced by `event`).
+tracks::Track make_event_track(tracks::EventType event, uint64_t seed,
+                               tracks::GeneratorParams circuit = {});
 
 /// What `track corpus` writes.
 struct CorpusOptions {
@@ -51,6 +49,8 @@ struct CorpusOptions {
   /// Events taken in turn (autocross, trackdrive).
   std::vector<tracks::EventType> events = {tracks::EventType::kTrackdrive};
   tracks::TravelDirection direction = tracks::TravelDirection::kFromSeed;
+  /// Outside diameter of the minimum hairpins, metres (GeneratorParams).
+  double hairpin_outer_diameter_m = tracks::GeneratorParams{}.hairpin_outer_diameter_m;
   /// Folder of the files and index.json; created when missing.
   std::filesystem::path out_dir;
   /// File format by extension: "csv" (EUFS CSV) or "yaml" (PacSim YAML).

@@ -73,9 +73,7 @@ constexpr std::array<std::pair<Primitive, double>, 6> kPrimitiveWeights{{
     {Primitive::kSlalom, 0.10},
 }};
 
-// the FSG minimum hairpin: 9 m outside diameter; designed 0.2-0.5 m wider so that the rule
-// checker's circle fit to the cones (over +-3 m of boundary) keeps it
-constexpr double kMinHairpinOuterDiameterM = 9.2;
+// minimum hairpins are drawn between GeneratorParams::hairpin_outer_diameter_m and this much more
 constexpr double kMinHairpinDiameterSpreadM = 0.3;
 // the longest straight of the straight-into-hairpin profiles, designed: the rule checker measures
 // straights by their chord headings and finds about 2 m less, so this is 78 m by the rules
@@ -547,14 +545,14 @@ class LayoutDrawer {
   }
 
   // a hairpin at the FSG minimum: a braking straight, 160-200 degrees around a centre-line
-  // radius that puts the outer boundary at kMinHairpinOuterDiameterM (+ up to the spread)
+  // radius that puts the outer boundary at hairpin_outer_diameter_m (+ up to the spread)
   // across, an exit straight; all three of one width, so that no width ramp bends the outer
   // boundary tighter than designed
   std::vector<Piece> minimum_hairpin(double wanted, double w, double braking_m) {
     const double sign =
         std::abs(wanted) > kPi / 4 ? (wanted > 0 ? 1.0 : -1.0) : turn_sign(wanted, kPi);
     const double outer_diameter =
-        kMinHairpinOuterDiameterM + uniform(rng_, 0.0, kMinHairpinDiameterSpreadM);
+        params_.hairpin_outer_diameter_m + uniform(rng_, 0.0, kMinHairpinDiameterSpreadM);
     const double radius = 0.5 * outer_diameter - 0.5 * w;
     const Piece braking{Feature::kHairpinLeg, false, braking_m, 0.0, w};
     const Piece turn = arc(Feature::kHairpin, radius, sign * uniform(rng_, 160.0, 200.0) * kDeg, w);
@@ -989,6 +987,9 @@ void validate(const GeneratorParams& params) {
   if (params.event != EventType::kAutocross && params.event != EventType::kTrackdrive)
     error = "the generator makes autocross and trackdrive circuits only";
   if (params.max_attempts < 1) error = "max_attempts must be at least 1";
+  if (!(params.hairpin_outer_diameter_m >= limits.min_hairpin_outer_diameter_m + 0.2 - 1e-9 &&
+        params.hairpin_outer_diameter_m <= 20.0))
+    error = "hairpin_outer_diameter_m must be in [9.2, 20] m";
   if (!error.empty()) throw std::invalid_argument("generate_circuit: " + error);
 }
 

@@ -13,7 +13,8 @@ namespace conesim::tracks {
 
 /// The kind of layout the generator draws. kStandard is the everyday mix; the others seek the
 /// hard cases of the rules on purpose (each still passes check_rules strictly):
-/// - kHairpins: three or more hairpins at the FSG minimum, 9.2-9.5 m outside diameter;
+/// - kHairpins: three or more hairpins at the FSG minimum, 9.2-9.5 m outside diameter (or at
+///   GeneratorParams::hairpin_outer_diameter_m);
 /// - kSlalom: two or three slaloms of four to eight half waves;
 /// - kChicanes: three or more tight S-bends (6-9 m radius);
 /// - kNarrow: 3.05 m lanes throughout, cones dense enough in turns that the width holds;
@@ -62,6 +63,10 @@ struct GeneratorParams {
   GeneratorProfile profile = GeneratorProfile::kStandard;
   /// Clockwise or counter-clockwise; kFromSeed draws it (both occur about equally often).
   TravelDirection direction = TravelDirection::kFromSeed;
+  /// Outside diameter of the profiles' minimum hairpins (drawn up to 0.3 m more), metres. The
+  /// default is the FSG minimum, 9 m, plus 0.2 m for the rule checker's fit to the cones. The
+  /// default car sweeps 11.2 m at full lock (tests/sim/grip_slow_test.cpp): it needs about 12.
+  double hairpin_outer_diameter_m = 9.2;
 };
 
 /// What one call of generate_circuit did, for tuning and benchmarks.

@@ -117,10 +117,18 @@ void add_track_commands(CLI::App& app, int& status) {
                     "straight-into-hairpin, hard (or mixed)")
         ->check(CLI::IsMember(profile_names()));
     add_direction_option(cmd, *direction);
+    auto hairpin =
+        std::make_shared<double>(conesim::tracks::GeneratorParams{}.hairpin_outer_diameter_m);
+    cmd->add_option("--hairpin-diameter", *hairpin,
+                    "Outside diameter of the profiles' minimum hairpins, m (default 9.2: the FSG "
+                    "9 m and a margin)")
+        ->check(CLI::Range(9.2, 20.0));
     cmd->callback([=] {
-      const auto t = conesim::sim::make_event_track(*parse_event(*event), *seed,
-                                                    *conesim::tracks::profile_from_string(*profile),
-                                                    parse_direction(*direction));
+      conesim::tracks::GeneratorParams circuit;
+      circuit.profile = *conesim::tracks::profile_from_string(*profile);
+      circuit.direction = parse_direction(*direction);
+      circuit.hairpin_outer_diameter_m = *hairpin;
+      const auto t = conesim::sim::make_event_track(*parse_event(*event), *seed, circuit);
       conesim::sim::write_track_atomically(t, *out);
       std::cerr << "wrote " << out->string() << " (" << t.cones.size() << " cones)\n";
     });
@@ -152,6 +160,9 @@ void add_track_commands(CLI::App& app, int& status) {
     cmd->add_option("--format", options->format, "File format: csv or yaml")
         ->check(CLI::IsMember({"csv", "yaml"}));
     cmd->add_option("--vehicle", *vehicle, "Vehicle YAML for the index's lap-time bounds");
+    cmd->add_option("--hairpin-diameter", options->hairpin_outer_diameter_m,
+                    "Outside diameter of the minimum hairpins, m (default 9.2)")
+        ->check(CLI::Range(9.2, 20.0));
     cmd->add_option("--out", options->out_dir, "Output folder")->required();
     cmd->callback([=, &status] {
       conesim::sim::CorpusOptions o = *options;
