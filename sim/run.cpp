@@ -354,8 +354,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     try {
       std::vector<SpeedSeries> laps = driven_laps(bound, driven, driven_speed_mps, track.closed);
       if (laps.size() > r.lap_times_s.size()) laps.resize(r.lap_times_s.size());  // the run-out
-      plot_speed(bound, laps,
-                 track.name + ": speed over distance against the lap-time bound",
+      plot_speed(bound, laps, track.name + ": speed over distance against the lap-time bound",
                  options.out_dir / "speed.png");
     } catch (const std::exception& e) {
       std::fprintf(stderr, "warning: speed.png: %s\n", e.what());

@@ -83,6 +83,9 @@ check generate_cw 0 "$bin" track generate --profile hairpins --direction cw --se
   --out "$work/cw.csv"
 check generate_ccw 0 "$bin" track generate --profile hairpins --direction ccw --seed 5 \
   --out "$work/ccw.csv"
+check generate_wide_hairpins 0 "$bin" track generate --profile hairpins --hairpin-diameter 12 \
+  --seed 5 --out "$work/h12.csv"
+check generate_wide_hairpins_strict 0 "$bin" track validate --strict "$work/h12.csv"
 if cmp -s "$work/cw.csv" "$work/ccw.csv"; then
   echo "FAIL generate_direction: cw and ccw gave the same file"; failures=$((failures + 1))
 fi
