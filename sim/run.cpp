@@ -9,6 +9,7 @@
 #include "control/driver.hpp"
 #include "core/error.hpp"
 #include "sim/report.hpp"
+#include "sim/lap_time_report.hpp"
 #include "sim/slam_runner.hpp"
 #include "sim/track_commands.hpp"
 #include "sim/vehicle_sim.hpp"
@@ -148,7 +149,11 @@ nlohmann::json events_json(const std::vector<RefereeEvent>& events) {
 }  // namespace
 
 tracks::Track scenario_track(const Scenario& s) {
-  if (!s.track.file) return make_event_track(s.event, s.track.generate_seed.value_or(s.seed));
+  if (!s.track.file) {
+    tracks::GeneratorParams circuit;
+    circuit.profile = s.track.generate_profile;
+    return make_event_track(s.event, s.track.generate_seed.value_or(s.seed), circuit);
+  }
   tracks::Track track = tracks::read_track(*s.track.file);
 
   // laps need a circuit: an open layout (a point-to-point course) is driven once, as autocross
@@ -236,6 +241,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   std::vector<char> seen(static_cast<size_t>(track.next_id()), 0);
   std::vector<core::MapCone> map;
   std::vector<core::Vec2> driven;
+  std::vector<double> driven_speed_mps;
   std::string trajectory =
       "t_s,x_m,y_m,yaw_rad,speed_mps,steer_rad,accel_cmd_mps2,est_x_m,est_y_m,est_yaw_rad\n";
   auto is_knocked = [&referee](int id) { return referee.is_knocked(id); };
@@ -314,6 +320,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     if (t % trajectory_period_us == 0) {
       const VehicleTruth truth = car.truth();
       driven.push_back(truth.pose.position());
+      driven_speed_mps.push_back(truth.vx_mps);
       char row[200];
       std::snprintf(row, sizeof(row), "%.3f,%.4f,%.4f,%.5f,%.3f,%.5f,%.3f,%.4f,%.4f,%.5f\n",
                     core::to_seconds(t), truth.pose.x, truth.pose.y, truth.pose.yaw, truth.vx_mps,
@@ -399,6 +406,11 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
          round_to(rig.stats().stereo_detect_ms_total / std::max(1, rig.stats().camera_frames),
                   1e-3)}}},
   };
+  // the lap-time bound at the car's full measured grip beside the lap times
+  laptime::LapTimeOptions bound_options;
+  bound_options.event = s.event;
+  const laptime::LapTimeBound bound = laptime::lap_time_bound(track, vp, bound_options);
+  add_lap_time_bound(m, bound, lap_times);
   result.metrics = m;
 
   // the results, metrics.json last of them: a run without it did not finish
@@ -452,6 +464,14 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   }
   // report.html from metrics.json, verdict first: every run has one, pictures or not
   picture("report.html", [&] { write_run_report(options.out_dir, m); });
+  // the driven speed against the bound's
+  if (options.plot && bound.usable)
+    picture("speed.png", [&] {
+      std::vector<SpeedSeries> laps = driven_laps(bound, driven, driven_speed_mps, track.closed);
+      if (laps.size() > r.lap_times_s.size()) laps.resize(r.lap_times_s.size());  // the run-out
+      plot_speed(bound, laps, track.name + ": speed over distance against the lap-time bound",
+                 options.out_dir / "speed.png");
+    });
   return result;
 }
 

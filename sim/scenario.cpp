@@ -340,6 +340,17 @@ void apply_override(YAML::Node& root, const std::string& assignment, const std::
   context.origins[path] = option;
 }
 
+// a generator profile by name (tracks::profile_from_string)
+tracks::GeneratorProfile read_profile(const YAML::Node& n, const Where& w, const std::string& key) {
+  const std::string name = read_string(n, w, key);
+  if (const auto p = tracks::profile_from_string(name)) return *p;
+  std::string names;
+  for (tracks::GeneratorProfile p : tracks::all_profiles())
+    names += (names.empty() ? "" : ", ") + std::string(tracks::to_string(p));
+  w.fail(n, key, "expected one of " + names + ", got '" + name + "'");
+}
+}
+
 // resolves a file named in a scenario: relative to the scenario's folder, then as given
 fs::path resolve(const fs::path& scenario_file, const std::string& name) {
   const fs::path p(name);
@@ -482,10 +493,14 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                        {"generate", [&](const YAML::Node& v) {
                           const Where g{&context, "track.generate"};
                           if (v.IsNull()) return;
-                          read_section(v, g, {{"seed", [&](const YAML::Node& x) {
-                                                 generate_seed =
-                                                     read_integer<uint64_t>(x, g, "seed");
-                                               }}});
+                          read_section(v, g,
+                                       {{"seed",
+                                         [&](const YAML::Node& x) {
+                                           generate_seed = read_integer<uint64_t>(x, g, "seed");
+                                         }},
+                                        {"profile", [&](const YAML::Node& x) {
+                                           s.track.generate_profile = read_profile(x, g, "profile");
+                                         }}});
                           if (!generate_seed) generate_seed = std::numeric_limits<uint64_t>::max();
                         }}});
        }},

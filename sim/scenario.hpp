@@ -13,6 +13,7 @@
 #include "sensors/cone_sensor.hpp"
 #include "sensors/stereo_camera.hpp"
 #include "sim/referee.hpp"
+#include "tracks/generator.hpp"
 #include "vehicle_models/vehicle_params.hpp"
 
 namespace conesim::sim {
@@ -24,6 +25,8 @@ struct TrackSource {
   std::optional<std::filesystem::path> file;
   /// Seed of a generated circuit (autocross, trackdrive); defaults to the scenario seed.
   std::optional<uint64_t> generate_seed;
+  /// Profile of a generated circuit (`track: {generate: {profile: hairpins}}`).
+  tracks::GeneratorProfile generate_profile = tracks::GeneratorProfile::kStandard;
 };
 
 /// Rates and ranges of what the car perceives (the cone sensor and the schedule).

@@ -2,9 +2,12 @@
 
 #include <cctype>
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <ostream>
 #include <sstream>
 #include <tuple>
+#include <stdexcept>
 
 #include "core/error.hpp"
 #include "sim/gnuplot.hpp"
@@ -84,7 +87,7 @@ nlohmann::json track_info(const Track& track, std::optional<EventType> event) {
   };
 }
 
-Track make_event_track(EventType event, uint64_t seed) {
+Track make_event_track(EventType event, uint64_t seed, tracks::GeneratorParams circuit) {
   switch (event) {
     case EventType::kSkidpad:
       return tracks::make_skidpad();
@@ -94,9 +97,120 @@ Track make_event_track(EventType event, uint64_t seed) {
     case EventType::kTrackdrive:
       break;
   }
-  tracks::GeneratorParams params;
-  params.event = event;
-  return tracks::generate_circuit(seed, params);
+  circuit.event = event;
+  return tracks::generate_circuit(seed, circuit);
+}
+
+int track_corpus(const CorpusOptions& options, std::ostream& out, std::ostream& err) {
+  fs::create_directories(options.out_dir);
+  nlohmann::json entries = nlohmann::json::array();
+  int status = kExitOk;
+  for (int i = 0; i < options.count; ++i) {
+    const tracks::GeneratorProfile profile = options.profiles[i % options.profiles.size()];
+    const EventType event = options.events[i % options.events.size()];
+    const uint64_t seed = options.seed + static_cast<uint64_t>(i);
+    const std::string stem = std::string(tracks::to_string(profile)) + "-" +
+                             std::string(tracks::to_string(event)) + "-" + std::to_string(seed);
+
+    // generate; a seed without a compliant layout is reported and skipped
+    tracks::GeneratorParams params;
+    params.event = event;
+    params.profile = profile;
+    params.direction = options.direction;
+    params.hairpin_outer_diameter_m = options.hairpin_outer_diameter_m;
+    tracks::GenerationReport report;
+    Track track;
+    try {
+      track = tracks::generate_circuit(seed, params, &report);
+    } catch (const std::exception& e) {
+      err << stem << ": " << e.what() << "\n";
+      status = kExitViolations;
+      continue;
+    }
+    track.name = stem;
+    const fs::path file = options.out_dir / (stem + "." + options.format);
+    write_track_atomically(track, file);
+
+    // what the index says of it: the rules (strictly), the figures and the bound
+    const auto violations = tracks::check_rules(track, event);
+    if (!violations.empty()) status = kExitViolations;
+    nlohmann::json listed = nlohmann::json::array();
+    for (const auto& v : violations) listed.push_back(v.to_string());
+    const tracks::TrackStats stats = tracks::compute_stats(track);
+    const laptime::LapTimeBound bound = laptime::lap_time_bound(track, options.vehicle);
+    entries.push_back({
+        {"file", file.filename().string()},
+        {"profile", std::string(tracks::to_string(profile))},
+        {"event", std::string(tracks::to_string(event))},
+        {"seed", seed},
+        {"direction", report.clockwise ? "clockwise" : "counter-clockwise"},
+        {"cones", track.cones.size()},
+        {"length_m", round_mm(stats.length_m)},
+        {"min_width_m", round_mm(stats.min_width_m)},
+        {"max_spacing_m", round_mm(stats.max_spacing_m)},
+        {"hairpins", report.hairpins},
+        {"min_hairpin_outer_diameter_m", round_mm(report.min_hairpin_outer_diameter_m)},
+        {"chicanes", report.chicanes},
+        {"slaloms", report.slaloms},
+        {"longest_straight_m", round_mm(report.longest_straight_m)},
+        {"attempts", report.attempts},
+        {"violations", listed},
+        {"lap_time_bound_s",
+         bound.usable ? nlohmann::json(round_mm(bound.lap_time_s)) : nlohmann::json(nullptr)},
+    });
+    out << file.string() << "\n";
+  }
+  const nlohmann::json index = {{"count", entries.size()},
+                                {"seed", options.seed},
+                                {"vehicle", options.vehicle.name},
+                                {"tracks", entries}};
+  const fs::path index_file = options.out_dir / "index.json";
+  const fs::path partial = options.out_dir / ".partial-index.json";
+  {
+    std::ofstream f(partial);
+    f << index.dump(2) << "\n";
+    if (!f) throw std::runtime_error(partial.string() + ": cannot write");
+  }
+  fs::rename(partial, index_file);
+  return status;
+}
+
+nlohmann::json lap_time_json(const Track& track, const laptime::LapTimeBound& bound,
+                             const vehicle_models::VehicleParams& vehicle, double grip_fraction) {
+  nlohmann::json j = {{"track", track.name},
+                      {"event", std::string(tracks::to_string(bound.event))},
+                      {"vehicle", vehicle.name},
+                      {"grip_fraction", grip_fraction}};
+  if (!bound.usable) {
+    j["lap_time_s"] = nullptr;
+    j["message"] = bound.message;
+    return j;
+  }
+  j["lap_time_s"] = round_mm(bound.lap_time_s);
+  j["line_length_m"] = round_mm(bound.line_length_m);
+  j["top_speed_mps"] = round_mm(bound.top_speed_mps);
+  j["min_speed_mps"] = round_mm(bound.min_speed_mps);
+  j["mean_speed_mps"] = round_mm(bound.line_length_m / bound.lap_time_s);
+  return j;
+}
+
+void write_speed_profile_csv(const laptime::LapTimeBound& bound, const fs::path& out) {
+  std::ostringstream text;
+  text << "s_m,speed_mps,x_m,y_m\n";
+  char row[120];
+  for (size_t i = 0; i < bound.s_m.size(); ++i) {
+    const core::Vec2 p = i < bound.line.size() ? bound.line[i] : core::Vec2::Zero();
+    std::snprintf(row, sizeof(row), "%.3f,%.4f,%.4f,%.4f\n", bound.s_m[i], bound.speed_mps[i],
+                  p.x(), p.y());
+    text << row;
+  }
+  const fs::path partial = out.parent_path() / (".partial-" + out.filename().string());
+  {
+    std::ofstream f(partial);
+    f << text.str();
+    if (!f) throw std::runtime_error(partial.string() + ": cannot write");
+  }
+  fs::rename(partial, out);
 }
 
 void write_track_atomically(const Track& track, const fs::path& out) {

@@ -9,7 +9,12 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
+#include "laptime/lap_time.hpp"
+#include "tracks/generator.hpp"
 #include "tracks/track.hpp"
+#include "vehicle_models/vehicle_params.hpp"
 
 namespace conesim::sim {
 
@@ -31,8 +36,46 @@ int track_validate(const std::vector<std::filesystem::path>& files,
 /// violations, plus event, closed and warnings.
 nlohmann::json track_info(const tracks::Track& track, std::optional<tracks::EventType> event);
 
-/// Makes the layout of an event: the FSG skidpad or acceleration, or a generated circuit.
-tracks::Track make_event_track(tracks::EventType event, uint64_t seed);
+/// Makes the layout of an event: the FSG skidpad or acceleration, or a generated circuit drawn
+/// with `circuit` (its event is replaced by `event`).
+tracks::Track make_event_track(tracks::EventType event, uint64_t seed,
+                               tracks::GeneratorParams circuit = {});
+
+/// What `track corpus` writes.
+struct CorpusOptions {
+  /// Layouts to write.
+  int count = 10;
+  /// Seed of the first layout; layout i has seed + i.
+  uint64_t seed = 0;
+  /// Profiles taken in turn (layout i has profiles[i % size]).
+  std::vector<tracks::GeneratorProfile> profiles = {tracks::GeneratorProfile::kHard};
+  /// Events taken in turn (autocross, trackdrive).
+  std::vector<tracks::EventType> events = {tracks::EventType::kTrackdrive};
+  tracks::TravelDirection direction = tracks::TravelDirection::kFromSeed;
+  /// Outside diameter of the minimum hairpins, metres (GeneratorParams).
+  double hairpin_outer_diameter_m = tracks::GeneratorParams{}.hairpin_outer_diameter_m;
+  /// Folder of the files and index.json; created when missing.
+  std::filesystem::path out_dir;
+  /// File format by extension: "csv" (EUFS CSV) or "yaml" (PacSim YAML).
+  std::string format = "csv";
+  /// The car the index's lap-time bounds are for.
+  vehicle_models::VehicleParams vehicle;
+};
+
+/// Writes the corpus: one file per layout named <profile>-<event>-<seed>.<format>, and
+/// index.json listing each file with its profile, event, seed, direction, features, length,
+/// narrowest width, rule violations and lap-time bound. A seed that yields no compliant layout
+/// is reported on `err` and skipped. Returns the exit code: 0 when every layout was written
+/// and complies with its event's rules strictly, 1 otherwise.
+int track_corpus(const CorpusOptions& options, std::ostream& out, std::ostream& err);
+
+/// The `track laptime` JSON: event, lap_time_s, line_length_m, top_speed_mps, min_speed_mps,
+/// grip_fraction, vehicle (and message when the bound is not usable).
+nlohmann::json lap_time_json(const tracks::Track& track, const laptime::LapTimeBound& bound,
+                             const vehicle_models::VehicleParams& vehicle, double grip_fraction);
+
+/// Writes the bound's speed profile as CSV: s_m,speed_mps,x_m,y_m.
+void write_speed_profile_csv(const laptime::LapTimeBound& bound, const std::filesystem::path& out);
 
 /// Writes a track by the output's extension, all or nothing (a temporary file is renamed).
 void write_track_atomically(const tracks::Track& track, const std::filesystem::path& out);

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/rng.hpp"
+#include "tracks/lanes.hpp"
 
 namespace conesim::tracks {
 
@@ -72,8 +73,123 @@ constexpr std::array<std::pair<Primitive, double>, 6> kPrimitiveWeights{{
     {Primitive::kSlalom, 0.10},
 }};
 
+// minimum hairpins are drawn between GeneratorParams::hairpin_outer_diameter_m and this much more
+constexpr double kMinHairpinDiameterSpreadM = 0.3;
+// the longest straight of the straight-into-hairpin profiles, designed: the rule checker measures
+// straights by their chord headings and finds about 2 m less, so this is 78 m by the rules
+constexpr double kMaxHardStraightM = 80.0;
+// cones of a minimum hairpin and its straights: closer along each boundary than the inner
+// boundaries of the two legs are to each other (2.6-3.2 m), so that a reader that rebuilds the
+// lanes from the cone colours chains them along the boundary, not across the hairpin
+constexpr double kMinHairpinConeSpacingM = 2.0;
+// a minimum hairpin is laid only where the guide turns at least this much ahead
+constexpr double kMinHairpinWantedTurnRad = 60.0 * kDeg;
+// a minimum hairpin's width: narrow, so that its inner boundary keeps 1.1-1.5 m of radius (wider,
+// the inner cones bunch up into a point the lane order cannot follow)
+constexpr double kMinHairpinWidthM = 3.2;
+constexpr double kMinHairpinWidthSpreadM = 0.3;
+// narrow lanes: the rule's 3 m and a little for the chords between cones in turns
+constexpr double kNarrowWidthM = 3.05;
+// in turns, cones are close enough that the chord between two of them cuts at most this much
+// less than the width above the rule's minimum into the track (and at least this much)
+constexpr double kMinSagittaAllowanceM = 0.04;
+constexpr double kSagittaMarginM = 0.06;
+
+// what a profile changes in the drawing of a layout
+struct ProfileSettings {
+  std::array<double, 6> weights{};  // in the order of kPrimitiveWeights
+  double width_m = 0.0;             // narrowest width (0: the parameters' width_m)
+  double extra_width_m = kExtraWidthM;
+  bool minimum_hairpins = false;  // hairpins at the FSG minimum outside diameter
+  bool long_straight_start = false;
+  double max_straight_m = kMaxStraightM;
+  int min_hairpins = 1;
+  int min_chicanes = 0;
+  int min_slaloms = 0;
+  int max_slaloms = 1;
+  double chicane_min_radius_m = 8.0;
+  double chicane_max_radius_m = 13.0;
+  double chicane_min_deg = 35.0;
+  double chicane_max_deg = 75.0;
+  int slalom_min_pairs = 2;  // half waves are twice this
+  int slalom_max_pairs = 3;
+  bool limit_sagitta = false;  // cones close enough in turns that the measured width holds
+};
+
+// the pieces of the profiles, combined by settings_of
+void use_minimum_hairpins(ProfileSettings& p) {
+  p.minimum_hairpins = true;
+  p.extra_width_m = 0.5;
+}
+void use_tight_chicanes(ProfileSettings& p) {
+  p.chicane_min_radius_m = 6.0;
+  p.chicane_max_radius_m = 9.0;
+  p.chicane_min_deg = 45.0;
+  p.chicane_max_deg = 80.0;
+}
+void use_long_straight_into_hairpin(ProfileSettings& p) {
+  use_minimum_hairpins(p);
+  p.long_straight_start = true;
+  p.max_straight_m = kMaxHardStraightM;
+}
+
+ProfileSettings settings_of(GeneratorProfile profile) {
+  ProfileSettings p;
+  for (size_t i = 0; i < p.weights.size(); ++i) p.weights[i] = kPrimitiveWeights[i].second;
+  if (profile == GeneratorProfile::kStandard) return p;
+  p.limit_sagitta = true;
+  switch (profile) {
+    case GeneratorProfile::kStandard:
+      break;
+    case GeneratorProfile::kHairpins:
+      p.weights = {0.20, 0.15, 0.10, 0.35, 0.10, 0.10};
+      use_minimum_hairpins(p);
+      p.min_hairpins = 3;
+      break;
+    case GeneratorProfile::kSlalom:
+      p.weights = {0.20, 0.20, 0.10, 0.10, 0.10, 0.30};
+      p.min_slaloms = 2;
+      p.max_slaloms = 3;
+      p.slalom_max_pairs = 4;
+      break;
+    case GeneratorProfile::kChicanes:
+      p.weights = {0.20, 0.15, 0.10, 0.10, 0.40, 0.05};
+      use_tight_chicanes(p);
+      p.min_chicanes = 3;
+      break;
+    case GeneratorProfile::kNarrow:
+      p.width_m = kNarrowWidthM;
+      p.extra_width_m = 0.0;
+      break;
+    case GeneratorProfile::kStraightIntoHairpin:
+      use_long_straight_into_hairpin(p);
+      break;
+    case GeneratorProfile::kHard:
+      p.weights = {0.15, 0.10, 0.10, 0.25, 0.25, 0.15};
+      use_long_straight_into_hairpin(p);
+      use_tight_chicanes(p);
+      p.width_m = kNarrowWidthM;
+      p.extra_width_m = 0.3;
+      p.min_hairpins = 2;
+      p.min_chicanes = 1;
+      p.min_slaloms = 1;
+      break;
+  }
+  return p;
+}
+
 // what a piece of centre line is part of (for the feature counts)
-enum class Feature { kStraight, kSweeper, kCorner, kHairpin, kChicane, kSlalom, kClosing };
+// (kHairpinLeg: the braking and exit straights of a minimum hairpin)
+enum class Feature {
+  kStraight,
+  kSweeper,
+  kCorner,
+  kHairpin,
+  kHairpinLeg,
+  kChicane,
+  kSlalom,
+  kClosing
+};
 
 // one piece of centre line: a constant-curvature arc (curvature 0: a straight), or one half
 // wave of a slalom whose curvature follows peak * sin(pi s / length)
@@ -99,6 +215,7 @@ struct Sample {
   double curvature = 0.0;
   double width_m = 0.0;
   double s_m = 0.0;
+  Feature feature = Feature::kStraight;
 };
 
 // heading change from the start of a piece to distance u into it
@@ -143,7 +260,7 @@ void lay_piece(const Piece& piece, double step_m, Turtle& turtle, std::vector<Sa
     const double u = i * h;
     if (out) {
       out->push_back({turtle.position, heading0 + heading_change(piece, u), curvature_at(piece, u),
-                      piece.width_m, turtle.s_m});
+                      piece.width_m, turtle.s_m, piece.feature});
     }
     turtle.position += displacement(piece, heading0, u, h);
     turtle.s_m += h;
@@ -242,10 +359,11 @@ class Guide {
 // pose, steering towards a point ahead on the guide loop, and stops short of closing the loop
 class LayoutDrawer {
  public:
-  LayoutDrawer(Rng& rng, const GeneratorParams& params)
+  LayoutDrawer(Rng& rng, const GeneratorParams& params, const ProfileSettings& settings)
       : rng_(rng),
         params_(params),
-        direction_(uniform(rng, 0.0, 1.0) < 0.5 ? 1.0 : -1.0),
+        settings_(settings),
+        direction_(travel_direction(rng, params.direction)),
         guide_(rng, guide_length(rng, params), direction_),
         lead_m_(uniform(rng, 6.0, 12.0)),
         stop_before_m_(uniform(rng, 20.0, 35.0)) {}
@@ -256,8 +374,19 @@ class LayoutDrawer {
     Turtle lead{Vec2(-lead_m_, 0.0), 0.0, -lead_m_};
     laid_ = lay_pieces({straight(lead_m_, width())}, kCheckStepM, lead);
 
-    // the start straight: long enough for the start zone and the feature mix
-    add({straight(uniform(rng_, 32.0, 45.0), width())});
+    // the start straight: long enough for the start zone and the feature mix; or, with the
+    // lead-in and a hairpin's braking straight, nearly the longest straight allowed, into a
+    // minimum hairpin
+    if (settings_.long_straight_start) {
+      const double run_m =
+          uniform(rng_, settings_.max_straight_m - 3.0, settings_.max_straight_m - 0.5);
+      const double w = hairpin_width();
+      const double braking_m = uniform(rng_, 8.0, 14.0);
+      add({straight(run_m - lead_m_ - braking_m, w)});
+      if (!try_add(minimum_hairpin(wanted_turn(), w, braking_m))) return std::nullopt;
+    } else {
+      add({straight(uniform(rng_, 32.0, 45.0), width())});
+    }
 
     // primitives until the guide is nearly done, retrying a few draws when one runs into the
     // track laid so far; a turtle that wanders off makes too long a lap
@@ -266,16 +395,35 @@ class LayoutDrawer {
       for (int attempt = 0; attempt < 12 && !placed; ++attempt) placed = try_add(draw_primitive());
       if (!placed || turtle_.s_m > params_.max_lap_m) return std::nullopt;
     }
-    if (hairpins_ == 0) return std::nullopt;
+    if (hairpins_ < settings_.min_hairpins || chicanes_ < settings_.min_chicanes ||
+        slaloms_ < settings_.min_slaloms)
+      return std::nullopt;
     return pieces_;
   }
 
   const Turtle& end() const { return turtle_; }
   const std::vector<Sample>& laid() const { return laid_; }
   double lead_m() const { return lead_m_; }
-  double width() { return params_.width_m + uniform(rng_, 0.0, kExtraWidthM); }
+  double width() { return narrowest() + uniform(rng_, 0.0, settings_.extra_width_m); }
+  double direction() const { return direction_; }
 
  private:
+  // +1 counter-clockwise, -1 clockwise; drawn from the seed even when the parameters fix it,
+  // so that the rest of the layout is the same either way
+  static double travel_direction(Rng& rng, TravelDirection wanted) {
+    const double drawn = uniform(rng, 0.0, 1.0) < 0.5 ? 1.0 : -1.0;
+    if (wanted == TravelDirection::kCounterClockwise) return 1.0;
+    if (wanted == TravelDirection::kClockwise) return -1.0;
+    return drawn;
+  }
+
+  double narrowest() const { return settings_.width_m > 0.0 ? settings_.width_m : params_.width_m; }
+
+  // a minimum hairpin's width: narrow, so that its inner boundary keeps some radius
+  double hairpin_width() {
+    return std::min(narrowest(), kMinHairpinWidthM) + uniform(rng_, 0.0, kMinHairpinWidthSpreadM);
+  }
+
   // the guide is shorter than the lap it leads to: the primitives wind around it
   static double guide_length(Rng& rng, const GeneratorParams& params) {
     const double lap_m = uniform(rng, params.min_lap_m + 40.0, params.max_lap_m - 60.0);
@@ -318,20 +466,24 @@ class LayoutDrawer {
   // the time) and when the layout still lacks one past half way
   std::vector<Piece> draw_primitive() {
     const double wanted = wanted_turn();
-    const bool force_hairpin =
-        hairpins_ == 0 && progress_m_ > 0.5 * guide_.length_m() && std::abs(wanted) > kPi / 4;
+    const double behind = settings_.min_hairpins > 1
+                              ? static_cast<double>(hairpins_ + 1) / (settings_.min_hairpins + 1)
+                              : 0.5;
+    const bool force_hairpin = hairpins_ < settings_.min_hairpins &&
+                               progress_m_ > behind * guide_.length_m() &&
+                               std::abs(wanted) > kPi / 4;
     const bool sharp = std::abs(wanted) > 110.0 * kDeg && uniform(rng_, 0.0, 1.0) < 0.5;
     Primitive kind = Primitive::kHairpin;
     if (!force_hairpin && !sharp) {
       double pick = uniform(rng_, 0.0, 1.0);
-      for (const auto& [k, weight] : kPrimitiveWeights) {
-        kind = k;
-        if ((pick -= weight) < 0.0) break;
+      for (size_t i = 0; i < kPrimitiveWeights.size(); ++i) {
+        kind = kPrimitiveWeights[i].first;
+        if ((pick -= settings_.weights[i]) < 0.0) break;
       }
     }
-    // no two straights in a row, at most one slalom
+    // no two straights in a row, at most max_slaloms slaloms
     if (kind == Primitive::kStraight && last_is_straight()) kind = Primitive::kSweeper;
-    if (kind == Primitive::kSlalom && slaloms_ > 0) kind = Primitive::kChicane;
+    if (kind == Primitive::kSlalom && slaloms_ >= settings_.max_slaloms) kind = Primitive::kChicane;
 
     switch (kind) {
       case Primitive::kStraight:
@@ -371,6 +523,14 @@ class LayoutDrawer {
   // hairpin: a braking straight, 150-200 degrees around a tight radius (the inner boundary
   // keeps kHairpinMinInnerRadiusM at the widest section width), a short exit straight
   std::vector<Piece> draw_hairpin(double wanted) {
+    if (settings_.minimum_hairpins) {
+      // a U-turn where the guide does not turn leaves the turtle heading the wrong way, beside
+      // its own track: a corner instead
+      if (std::abs(wanted) < kMinHairpinWantedTurnRad)
+        return {
+            draw_turn(Feature::kCorner, kCornerMinRadiusM, kCornerMaxRadiusM, 45.0, 120.0, wanted)};
+      return minimum_hairpin(wanted, hairpin_width(), uniform(rng_, 8.0, 20.0));
+    }
     std::vector<Piece> out;
     if (!last_is_straight()) out.push_back(straight(uniform(rng_, 8.0, 20.0), width()));
     const double sign =
@@ -384,16 +544,36 @@ class LayoutDrawer {
     return out;
   }
 
+  // a hairpin at the FSG minimum: a braking straight, 160-200 degrees around a centre-line
+  // radius that puts the outer boundary at hairpin_outer_diameter_m (+ up to the spread)
+  // across, an exit straight; all three of one width, so that no width ramp bends the outer
+  // boundary tighter than designed
+  std::vector<Piece> minimum_hairpin(double wanted, double w, double braking_m) {
+    const double sign =
+        std::abs(wanted) > kPi / 4 ? (wanted > 0 ? 1.0 : -1.0) : turn_sign(wanted, kPi);
+    const double outer_diameter =
+        params_.hairpin_outer_diameter_m + uniform(rng_, 0.0, kMinHairpinDiameterSpreadM);
+    const double radius = 0.5 * outer_diameter - 0.5 * w;
+    const Piece braking{Feature::kHairpinLeg, false, braking_m, 0.0, w};
+    const Piece turn = arc(Feature::kHairpin, radius, sign * uniform(rng_, 160.0, 200.0) * kDeg, w);
+    const Piece exit{Feature::kHairpinLeg, false, uniform(rng_, 6.0, 14.0), 0.0, w};
+    return {braking, turn, exit};
+  }
+
   // chicane: an S-bend that leaves the heading nearly unchanged
   std::vector<Piece> draw_chicane() {
     std::vector<Piece> out;
+    const ProfileSettings& p = settings_;
     const double sign = uniform(rng_, 0.0, 1.0) < 0.5 ? 1.0 : -1.0;
-    const double angle = uniform(rng_, 35.0, 75.0) * kDeg;
+    const double angle = uniform(rng_, p.chicane_min_deg, p.chicane_max_deg) * kDeg;
     const double w = width();
-    out.push_back(arc(Feature::kChicane, uniform(rng_, 8.0, 13.0), sign * angle, w));
+    out.push_back(arc(Feature::kChicane,
+                      uniform(rng_, p.chicane_min_radius_m, p.chicane_max_radius_m), sign * angle,
+                      w));
     const double between = uniform(rng_, 0.0, 5.0);
     if (between > 1.0) out.push_back({Feature::kChicane, false, between, 0.0, w});
-    out.push_back(arc(Feature::kChicane, uniform(rng_, 8.0, 13.0),
+    out.push_back(arc(Feature::kChicane,
+                      uniform(rng_, p.chicane_min_radius_m, p.chicane_max_radius_m),
                       -sign * angle * uniform(rng_, 0.7, 1.3), w));
     return out;
   }
@@ -403,7 +583,8 @@ class LayoutDrawer {
   std::vector<Piece> draw_slalom() {
     std::vector<Piece> out;
     if (!last_is_straight()) out.push_back(straight(uniform(rng_, 6.0, 12.0), width()));
-    const int half_waves = 2 * static_cast<int>(uniform_int(rng_, 2, 3));
+    const int half_waves = 2 * static_cast<int>(uniform_int(rng_, settings_.slalom_min_pairs,
+                                                            settings_.slalom_max_pairs));
     const double half_period = uniform(rng_, kSlalomMinHalfPeriodM, kSlalomMaxHalfPeriodM);
     const double peak = uniform(rng_, 0.8, 1.0) * kSlalomMaxCurvature;
     const double sign = uniform(rng_, 0.0, 1.0) < 0.5 ? 1.0 : -1.0;
@@ -436,9 +617,12 @@ class LayoutDrawer {
   // takes a laid primitive: pieces, samples, turtle pose, feature counts and guide progress
   void add_laid(const std::vector<Piece>& primitive, const std::vector<Sample>& fresh,
                 const Turtle& next) {
-    for (const Piece& p : primitive) {
+    for (size_t i = 0; i < primitive.size(); ++i) {
+      const Piece& p = primitive[i];
       if (p.feature == Feature::kHairpin) ++hairpins_;
-      if (p.feature == Feature::kSlalom) slaloms_ = 1;
+      if (p.feature == Feature::kSlalom && (i == 0 || primitive[i - 1].feature != Feature::kSlalom))
+        ++slaloms_;
+      if (p.feature == Feature::kChicane && i == 0) ++chicanes_;
     }
     pieces_.insert(pieces_.end(), primitive.begin(), primitive.end());
     laid_.insert(laid_.end(), fresh.begin(), fresh.end());
@@ -449,6 +633,7 @@ class LayoutDrawer {
 
   Rng& rng_;
   const GeneratorParams& params_;
+  const ProfileSettings& settings_;
   double direction_;
   Guide guide_;
   double lead_m_;
@@ -459,6 +644,7 @@ class LayoutDrawer {
   std::vector<Sample> laid_;
   int hairpins_ = 0;
   int slaloms_ = 0;
+  int chicanes_ = 0;
 };
 
 // angle wrapped to [0, 2 pi)
@@ -542,7 +728,8 @@ double longest_straight(const std::vector<Piece>& pieces) {
 // closes the open part back to the start pose; the pieces of the whole lap when one of the
 // closing paths keeps the rules and the clearance
 std::optional<std::vector<Piece>> close_loop(LayoutDrawer& drawer, std::vector<Piece> open,
-                                             const GeneratorParams& params) {
+                                             const GeneratorParams& params,
+                                             const ProfileSettings& settings) {
   // candidate closing paths, shortest first
   const Turtle& end = drawer.end();
   const Vec2 lead_start(-drawer.lead_m(), 0.0);
@@ -572,7 +759,7 @@ std::optional<std::vector<Piece>> close_loop(LayoutDrawer& drawer, std::vector<P
     closing.push_back({Feature::kStraight, false, drawer.lead_m(), 0.0, lead_w});
     std::vector<Piece> lap = open;
     lap.insert(lap.end(), closing.begin(), closing.end());
-    if (longest_straight(lap) > kMaxStraightM) continue;
+    if (longest_straight(lap) > settings.max_straight_m) continue;
 
     // the closing path must keep clear of the rest and end on the start pose
     Turtle t = end;
@@ -635,11 +822,26 @@ double spacing_for(double curvature, double straight_spacing_m) {
          f * (std::min(kTightSpacingM, straight_spacing_m) - straight_spacing_m);
 }
 
+// with limit_sagitta, the spacing in a turn is also capped so that the chord between two cones
+// of the outer boundary cuts into the track by no more than the width has above the rule's
+// minimum (kMinSagittaAllowanceM at least): the rule checker measures the width from each cone
+// to the other boundary's polyline
+double spacing_at(const Sample& c, double straight_spacing_m, bool limit_sagitta) {
+  double spacing = spacing_for(c.curvature, straight_spacing_m);
+  if (limit_sagitta && (c.feature == Feature::kHairpin || c.feature == Feature::kHairpinLeg))
+    spacing = std::min(spacing, kMinHairpinConeSpacingM);
+  if (!limit_sagitta || std::abs(c.curvature) < 1e-6) return spacing;
+  const double outer_radius = 1.0 / std::abs(c.curvature) + 0.5 * c.width_m;
+  const double allowance =
+      std::max(kMinSagittaAllowanceM, c.width_m - RuleLimits{}.min_width_m - kSagittaMarginM);
+  return std::min(spacing, 2.0 * std::sqrt(2.0 * outer_radius * allowance));
+}
+
 // cone positions along one boundary (side +1 left, -1 right): the boundary is walked from the
 // start line, and cones are put at equal steps of the integral of 1 / spacing so that no gap
 // along the boundary exceeds the local spacing
 std::vector<Vec2> place_boundary_cones(const std::vector<Sample>& samples, double start_s,
-                                       double side, double straight_spacing_m) {
+                                       double side, double straight_spacing_m, bool limit_sagitta) {
   // the boundary from the start line around the lap
   const size_t n = samples.size();
   size_t first = 0;
@@ -655,7 +857,7 @@ std::vector<Vec2> place_boundary_cones(const std::vector<Sample>& samples, doubl
       density.push_back(0.0);
     } else {
       const double step = (p - pts.back()).norm();
-      density.push_back(density.back() + step / spacing_for(c.curvature, straight_spacing_m));
+      density.push_back(density.back() + step / spacing_at(c, straight_spacing_m, limit_sagitta));
     }
     pts.push_back(p);
   }
@@ -678,9 +880,12 @@ std::vector<Vec2> place_boundary_cones(const std::vector<Sample>& samples, doubl
 
 // the Track of a lap: cones, lanes, start zone and the designed centre line
 Track build_track(const std::vector<Sample>& samples, double lap_m, uint64_t seed,
-                  const GeneratorParams& params) {
+                  const GeneratorParams& params, const ProfileSettings& settings) {
   Track track;
-  track.name = "generated-" + std::to_string(seed);
+  track.name =
+      params.profile == GeneratorProfile::kStandard
+          ? "generated-" + std::to_string(seed)
+          : "generated-" + std::string(to_string(params.profile)) + "-" + std::to_string(seed);
   track.closed = true;
   track.event = params.event;
   track.start = Pose2{0.0, 0.0, 0.0};
@@ -689,7 +894,8 @@ Track build_track(const std::vector<Sample>& samples, double lap_m, uint64_t see
   for (const double side : {1.0, -1.0}) {
     const ConeClass cls = side > 0.0 ? ConeClass::kBlue : ConeClass::kYellow;
     std::vector<int>& lane = side > 0.0 ? track.left_lane : track.right_lane;
-    for (const Vec2& p : place_boundary_cones(samples, kStartLineM, side, params.cone_spacing_m)) {
+    for (const Vec2& p : place_boundary_cones(samples, kStartLineM, side, params.cone_spacing_m,
+                                              settings.limit_sagitta)) {
       const int id = static_cast<int>(track.cones.size());
       track.cones.push_back({id, cls, p, std::nullopt});
       lane.push_back(id);
@@ -721,6 +927,26 @@ Track build_track(const std::vector<Sample>& samples, double lap_m, uint64_t see
   return track;
 }
 
+// true when the lanes rebuilt from the cone colours and the start pose, as a reader of a format
+// without lanes (EUFS CSV) rebuilds them, are the designed ones
+bool lanes_survive_reading(const Track& track) {
+  Track copy = track;
+  copy.left_lane.clear();
+  copy.right_lane.clear();
+  rebuild_lanes(copy);
+  // the same cones in the same cyclic order (the rebuilt lanes begin near the start pose)
+  const auto same_loop = [](const std::vector<int>& a, const std::vector<int>& b) {
+    if (a.size() != b.size() || a.empty()) return false;
+    const auto first = std::find(a.begin(), a.end(), b.front());
+    if (first == a.end()) return false;
+    std::vector<int> rotated(first, a.end());
+    rotated.insert(rotated.end(), a.begin(), first);
+    return rotated == b;
+  };
+  return copy.closed && same_loop(copy.left_lane, track.left_lane) &&
+         same_loop(copy.right_lane, track.right_lane);
+}
+
 // counts the primitives of a lap into the report
 void count_features(const std::vector<Piece>& lap, GenerationReport& report) {
   int chicane_arcs = 0;
@@ -734,6 +960,19 @@ void count_features(const std::vector<Piece>& lap, GenerationReport& report) {
       ++report.slaloms;
   }
   report.chicanes = chicane_arcs / 2;
+
+  // direction of travel, the tightest hairpin's outside diameter, the longest straight
+  double turned = 0.0;
+  report.min_hairpin_outer_diameter_m = 0.0;
+  for (const Piece& p : lap) {
+    turned += heading_change(p, p.length_m);
+    if (p.feature != Feature::kHairpin) continue;
+    const double d = 2.0 / std::abs(p.curvature) + p.width_m;
+    if (report.min_hairpin_outer_diameter_m == 0.0 || d < report.min_hairpin_outer_diameter_m)
+      report.min_hairpin_outer_diameter_m = d;
+  }
+  report.clockwise = turned < 0.0;
+  report.longest_straight_m = longest_straight(lap);
 }
 
 // checks the parameters; throws std::invalid_argument on a layout the rules cannot allow
@@ -748,10 +987,47 @@ void validate(const GeneratorParams& params) {
   if (params.event != EventType::kAutocross && params.event != EventType::kTrackdrive)
     error = "the generator makes autocross and trackdrive circuits only";
   if (params.max_attempts < 1) error = "max_attempts must be at least 1";
+  if (!(params.hairpin_outer_diameter_m >= limits.min_hairpin_outer_diameter_m + 0.2 - 1e-9 &&
+        params.hairpin_outer_diameter_m <= 20.0))
+    error = "hairpin_outer_diameter_m must be in [9.2, 20] m";
   if (!error.empty()) throw std::invalid_argument("generate_circuit: " + error);
 }
 
 }  // namespace
+
+std::string_view to_string(GeneratorProfile profile) {
+  switch (profile) {
+    case GeneratorProfile::kStandard:
+      return "standard";
+    case GeneratorProfile::kHairpins:
+      return "hairpins";
+    case GeneratorProfile::kSlalom:
+      return "slalom";
+    case GeneratorProfile::kChicanes:
+      return "chicanes";
+    case GeneratorProfile::kNarrow:
+      return "narrow";
+    case GeneratorProfile::kStraightIntoHairpin:
+      return "straight-into-hairpin";
+    case GeneratorProfile::kHard:
+      return "hard";
+  }
+  return "standard";
+}
+
+std::optional<GeneratorProfile> profile_from_string(std::string_view name) {
+  if (name == "mixed") return GeneratorProfile::kHard;
+  for (GeneratorProfile p : all_profiles())
+    if (to_string(p) == name) return p;
+  return std::nullopt;
+}
+
+std::vector<GeneratorProfile> all_profiles() {
+  return {GeneratorProfile::kStandard, GeneratorProfile::kHairpins,
+          GeneratorProfile::kSlalom,   GeneratorProfile::kChicanes,
+          GeneratorProfile::kNarrow,   GeneratorProfile::kStraightIntoHairpin,
+          GeneratorProfile::kHard};
+}
 
 Track generate_circuit(uint64_t seed, const GeneratorParams& params) {
   return generate_circuit(seed, params, nullptr);
@@ -759,6 +1035,7 @@ Track generate_circuit(uint64_t seed, const GeneratorParams& params) {
 
 Track generate_circuit(uint64_t seed, const GeneratorParams& params, GenerationReport* report) {
   validate(params);
+  const ProfileSettings settings = settings_of(params.profile);
   GenerationReport local;
   GenerationReport& r = report ? *report : local;
   r = {};
@@ -767,10 +1044,10 @@ Track generate_circuit(uint64_t seed, const GeneratorParams& params, GenerationR
     Rng rng(core::derive_seed(seed, static_cast<uint64_t>(attempt)));
 
     // draw the open part, close it, and sample the lap
-    LayoutDrawer drawer(rng, params);
+    LayoutDrawer drawer(rng, params, settings);
     std::optional<std::vector<Piece>> open = drawer.draw_open_part();
     std::optional<std::vector<Piece>> lap;
-    if (open) lap = close_loop(drawer, std::move(*open), params);
+    if (open) lap = close_loop(drawer, std::move(*open), params, settings);
     if (!lap) {
       ++r.rejected_geometry;
       continue;
@@ -780,8 +1057,9 @@ Track generate_circuit(uint64_t seed, const GeneratorParams& params, GenerationR
     for (const Piece& p : *lap) lap_m += p.length_m;
 
     // cones and the rest, then the rule checker as the final gate
-    Track track = build_track(samples, lap_m, seed, params);
-    if (!is_compliant(check_rules(track, params.event))) {
+    Track track = build_track(samples, lap_m, seed, params, settings);
+    if (!is_compliant(check_rules(track, params.event)) ||
+        (params.profile != GeneratorProfile::kStandard && !lanes_survive_reading(track))) {
       ++r.rejected_rules;
       continue;
     }

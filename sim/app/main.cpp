@@ -42,6 +42,35 @@ std::optional<EventType> parse_event(const std::string& name) {
   return conesim::tracks::event_from_string(name);
 }
 
+// the generator profiles' names, for --profile
+std::vector<std::string> profile_names() {
+  std::vector<std::string> names;
+  for (auto p : conesim::tracks::all_profiles()) names.emplace_back(conesim::tracks::to_string(p));
+  names.emplace_back("mixed");
+  return names;
+}
+
+conesim::tracks::TravelDirection parse_direction(const std::string& name) {
+  using conesim::tracks::TravelDirection;
+  if (name == "cw" || name == "clockwise") return TravelDirection::kClockwise;
+  if (name == "ccw" || name == "counter-clockwise") return TravelDirection::kCounterClockwise;
+  return TravelDirection::kFromSeed;
+}
+
+// a --direction option
+CLI::Option* add_direction_option(CLI::App* cmd, std::string& value) {
+  return cmd
+      ->add_option("--direction", value,
+                   "Direction of travel: cw, ccw or seed (drawn from the seed, the default)")
+      ->check(CLI::IsMember({"cw", "ccw", "clockwise", "counter-clockwise", "seed"}));
+}
+
+// the car of --vehicle: a YAML file or 'default'
+conesim::vehicle_models::VehicleParams vehicle_of(const std::string& file) {
+  return file.empty() || file == "default" ? conesim::vehicle_models::VehicleParams{}
+                                           : conesim::sim::load_vehicle(file);
+}
+
 // `conesim track ...`
 void add_track_commands(CLI::App& app, int& status) {
   auto* track = app.add_subcommand("track", "Read, check, generate, convert and plot cone layouts");
@@ -85,14 +114,107 @@ void add_track_commands(CLI::App& app, int& status) {
     auto event = std::make_shared<std::string>("trackdrive");
     auto seed = std::make_shared<uint64_t>(0);
     auto out = std::make_shared<fs::path>();
+    auto profile = std::make_shared<std::string>("standard");
+    auto direction = std::make_shared<std::string>("seed");
     add_event_option(cmd, *event, "Event (default trackdrive)");
     cmd->add_option("--seed", *seed, "Seed of the random circuit (same seed, same track)");
     cmd->add_option("--out", *out, "Output file: .csv (EUFS CSV) or .yaml (PacSim YAML)")
         ->required();
+    cmd->add_option("--profile", *profile,
+                    "Circuit profile: standard, hairpins, slalom, chicanes, narrow, "
+                    "straight-into-hairpin, hard (or mixed)")
+        ->check(CLI::IsMember(profile_names()));
+    add_direction_option(cmd, *direction);
+    auto hairpin =
+        std::make_shared<double>(conesim::tracks::GeneratorParams{}.hairpin_outer_diameter_m);
+    cmd->add_option("--hairpin-diameter", *hairpin,
+                    "Outside diameter of the profiles' minimum hairpins, m (default 9.2: the FSG "
+                    "9 m and a margin)")
+        ->check(CLI::Range(9.2, 20.0));
     cmd->callback([=] {
-      const auto t = conesim::sim::make_event_track(*parse_event(*event), *seed);
+      conesim::tracks::GeneratorParams circuit;
+      circuit.profile = *conesim::tracks::profile_from_string(*profile);
+      circuit.direction = parse_direction(*direction);
+      circuit.hairpin_outer_diameter_m = *hairpin;
+      const auto t = conesim::sim::make_event_track(*parse_event(*event), *seed, circuit);
       conesim::sim::write_track_atomically(t, *out);
       std::cerr << "wrote " << out->string() << " (" << t.cones.size() << " cones)\n";
+    });
+  }
+
+  // corpus
+  {
+    auto* cmd = track->add_subcommand(
+        "corpus",
+        "Write N generated circuits from a seed and an index.json. Exit 1 when one "
+        "could not be made or breaks a rule");
+    auto options = std::make_shared<conesim::sim::CorpusOptions>();
+    auto profiles = std::make_shared<std::vector<std::string>>();
+    auto events = std::make_shared<std::vector<std::string>>();
+    auto direction = std::make_shared<std::string>("seed");
+    auto vehicle = std::make_shared<std::string>("default");
+    cmd->add_option("--count", options->count, "Layouts to write")->check(CLI::Range(1, 100000));
+    cmd->add_option("--seed", options->seed, "Seed of the first layout (layout i: seed + i)");
+    cmd->add_option("--profile", *profiles,
+                    "Profiles taken in turn, comma-separated (default hard)")
+        ->delimiter(',')
+        ->check(CLI::IsMember(profile_names()));
+    cmd->add_option("--event", *events,
+                    "Events taken in turn, comma-separated: autocross, trackdrive (default "
+                    "trackdrive)")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"autocross", "trackdrive"}));
+    add_direction_option(cmd, *direction);
+    cmd->add_option("--format", options->format, "File format: csv or yaml")
+        ->check(CLI::IsMember({"csv", "yaml"}));
+    cmd->add_option("--vehicle", *vehicle, "Vehicle YAML for the index's lap-time bounds");
+    cmd->add_option("--hairpin-diameter", options->hairpin_outer_diameter_m,
+                    "Outside diameter of the minimum hairpins, m (default 9.2)")
+        ->check(CLI::Range(9.2, 20.0));
+    cmd->add_option("--out", options->out_dir, "Output folder")->required();
+    cmd->callback([=, &status] {
+      conesim::sim::CorpusOptions o = *options;
+      if (!profiles->empty()) {
+        o.profiles.clear();
+        for (const auto& p : *profiles)
+          o.profiles.push_back(*conesim::tracks::profile_from_string(p));
+      }
+      if (!events->empty()) {
+        o.events.clear();
+        for (const auto& e : *events) o.events.push_back(*parse_event(e));
+      }
+      o.direction = parse_direction(*direction);
+      o.vehicle = vehicle_of(*vehicle);
+      status = conesim::sim::track_corpus(o, std::cout, std::cerr);
+    });
+  }
+
+  // laptime
+  {
+    auto* cmd = track->add_subcommand(
+        "laptime", "Print the quasi-steady-state lap-time bound of a layout as JSON");
+    auto file = std::make_shared<fs::path>();
+    auto event = std::make_shared<std::string>();
+    auto vehicle = std::make_shared<std::string>("default");
+    auto grip = std::make_shared<double>(1.0);
+    auto csv = std::make_shared<fs::path>();
+    cmd->add_option("FILE", *file, "Track file")->required();
+    add_event_option(cmd, *event, "Time the layout as this event (default: recognised)");
+    cmd->add_option("--vehicle", *vehicle, "Vehicle YAML file, or 'default'");
+    cmd->add_option("--grip-fraction", *grip,
+                    "Share of the measured grip (default 1: the full measured grip)")
+        ->check(CLI::Range(0.05, 2.0));
+    cmd->add_option("--profile-csv", *csv, "Also write the speed profile: s_m,speed_mps,x_m,y_m");
+    cmd->callback([=, &status] {
+      const auto t = conesim::tracks::read_track(*file);
+      const auto v = vehicle_of(*vehicle);
+      conesim::laptime::LapTimeOptions options;
+      options.grip_fraction = *grip;
+      options.event = parse_event(*event);
+      const auto bound = conesim::laptime::lap_time_bound(t, v, options);
+      std::cout << conesim::sim::lap_time_json(t, bound, v, *grip).dump(2) << "\n";
+      if (!csv->empty() && bound.usable) conesim::sim::write_speed_profile_csv(bound, *csv);
+      if (!bound.usable) status = 1;
     });
   }
 

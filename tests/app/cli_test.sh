@@ -51,6 +51,49 @@ check accel_strict 0 "$bin" track validate --strict --event acceleration "$work/
 check generate_bad_ext 2 "$bin" track generate --seed 1 --out "$work/gen.txt"
 if [ -e "$work/gen.txt" ]; then echo "FAIL generate_bad_ext: left a file"; failures=$((failures + 1)); fi
 
+# generator profiles: strictly compliant, named profiles only, both directions on request
+for profile in hairpins slalom chicanes narrow straight-into-hairpin hard mixed; do
+  check "generate_$profile" 0 "$bin" track generate --profile "$profile" --seed 5 \
+    --out "$work/p-$profile.csv"
+  check "generate_${profile}_strict" 0 "$bin" track validate --strict --event trackdrive \
+    "$work/p-$profile.csv"
+done
+if "$bin" track generate --profile wiggly --seed 1 --out "$work/w.csv" 2>/dev/null; then
+  echo "FAIL generate_bad_profile: an unknown profile was accepted"; failures=$((failures + 1))
+fi
+check generate_cw 0 "$bin" track generate --profile hairpins --direction cw --seed 5 \
+  --out "$work/cw.csv"
+check generate_ccw 0 "$bin" track generate --profile hairpins --direction ccw --seed 5 \
+  --out "$work/ccw.csv"
+check generate_wide_hairpins 0 "$bin" track generate --profile hairpins --hairpin-diameter 12 \
+  --seed 5 --out "$work/h12.csv"
+check generate_wide_hairpins_strict 0 "$bin" track validate --strict "$work/h12.csv"
+if cmp -s "$work/cw.csv" "$work/ccw.csv"; then
+  echo "FAIL generate_direction: cw and ccw gave the same file"; failures=$((failures + 1))
+fi
+
+# corpus: N files named by profile, event and seed, and an index
+check corpus 0 "$bin" track corpus --count 4 --seed 10 --profile hard,hairpins \
+  --event autocross,trackdrive --out "$work/corpus"
+for f in hard-autocross-10.csv hairpins-trackdrive-11.csv hard-autocross-12.csv \
+         hairpins-trackdrive-13.csv index.json; do
+  if [ ! -s "$work/corpus/$f" ]; then echo "FAIL corpus: no $f"; failures=$((failures + 1)); fi
+done
+expect_text corpus_index "$work/corpus/index.json" '"lap_time_bound_s": [0-9]'
+check corpus_strict 0 "$bin" track validate --strict "$work/corpus/"*.csv
+
+# lap-time bound: JSON, the speed profile as CSV, exit 2 on a malformed file
+check laptime 0 "$bin" track laptime "$data/tracks/pacsim/FSG19.yaml" \
+  --profile-csv "$work/fsg19_speed.csv"
+for key in lap_time_s line_length_m top_speed_mps min_speed_mps grip_fraction; do
+  expect_text "laptime_$key" "$work/out" "\"$key\": [0-9]"
+done
+expect_text laptime_csv "$work/fsg19_speed.csv" '^s_m,speed_mps,x_m,y_m$'
+check laptime_skidpad 0 "$bin" track laptime "$work/skidpad.yaml"
+expect_text laptime_skidpad_event "$work/out" '"event": "skidpad"'
+check laptime_grip 0 "$bin" track laptime "$data/tracks/fssim/FSG.yaml" --grip-fraction 0.8
+check laptime_malformed 2 "$bin" track laptime "$work/nan.csv"
+
 check info 0 "$bin" track info "$data/tracks/fssim/FSG.yaml"
 for key in cones length_m min_width_m max_spacing_m min_radius_m violations; do
   expect_text "info_$key" "$work/out" "\"$key\""

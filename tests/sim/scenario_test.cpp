@@ -57,6 +57,21 @@ TEST_F(ScenarioFile, OverridesApplyBeforeValidation) {
   EXPECT_NE(error_of("event: trackdrive\n", {"nonsense"}).find("key.path=value"), std::string::npos);
 }
 
+TEST_F(ScenarioFile, GeneratedCircuitTakesAProfile) {
+  // the profile by name, the scenario seed when the circuit has none; an unknown name is an
+  // error that names the key and the profiles there are
+  const Scenario s =
+      load_scenario(write("event: autocross\nseed: 5\ntrack: {generate: {profile: hairpins}}\n"));
+  EXPECT_EQ(s.track.generate_profile, tracks::GeneratorProfile::kHairpins);
+  EXPECT_EQ(s.track.generate_seed, 5u);
+  const Scenario t = load_scenario(write("event: trackdrive\ntrack: {generate: {seed: 3}}\n"));
+  EXPECT_EQ(t.track.generate_profile, tracks::GeneratorProfile::kStandard);
+  const std::string bad =
+      error_of("event: trackdrive\ntrack:\n  generate: {seed: 1, profile: wiggly}\n");
+  EXPECT_NE(bad.find("track.generate.profile"), std::string::npos) << bad;
+  EXPECT_NE(bad.find("straight-into-hairpin"), std::string::npos) << bad;
+}
+
 TEST_F(ScenarioFile, BadInputNamesFileLineAndKey) {
   // an unknown key, with its line and the keys that exist
   const std::string unknown = error_of("event: autocross\ndriver:\n  top_speed: 3\n");
