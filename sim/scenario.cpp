@@ -349,7 +349,6 @@ tracks::GeneratorProfile read_profile(const YAML::Node& n, const Where& w, const
     names += (names.empty() ? "" : ", ") + std::string(tracks::to_string(p));
   w.fail(n, key, "expected one of " + names + ", got '" + name + "'");
 }
-}
 
 // resolves a file named in a scenario: relative to the scenario's folder, then as given
 fs::path resolve(const fs::path& scenario_file, const std::string& name) {
