@@ -8,8 +8,8 @@
 
 #include "control/driver.hpp"
 #include "core/error.hpp"
-#include "sim/report.hpp"
 #include "sim/lap_time_report.hpp"
+#include "sim/report.hpp"
 #include "sim/slam_runner.hpp"
 #include "sim/track_commands.hpp"
 #include "sim/vehicle_sim.hpp"
@@ -461,17 +461,17 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       picture("perception_bands.png",
               [&] { rig.perception()->write_plot(options.out_dir / "perception_bands.png"); });
     if (slam) picture("the SLAM figures", [&] { slam->write_report(options.out_dir); });
+    // the driven speed against the bound's, lap by lap (the run-out after the finish left out)
+    if (bound.usable)
+      picture("speed.png", [&] {
+        std::vector<SpeedSeries> laps = driven_laps(bound, driven, driven_speed_mps, track.closed);
+        if (laps.size() > r.lap_times_s.size()) laps.resize(r.lap_times_s.size());
+        plot_speed(bound, laps, track.name + ": speed over distance against the lap-time bound",
+                   options.out_dir / "speed.png");
+      });
   }
   // report.html from metrics.json, verdict first: every run has one, pictures or not
   picture("report.html", [&] { write_run_report(options.out_dir, m); });
-  // the driven speed against the bound's
-  if (options.plot && bound.usable)
-    picture("speed.png", [&] {
-      std::vector<SpeedSeries> laps = driven_laps(bound, driven, driven_speed_mps, track.closed);
-      if (laps.size() > r.lap_times_s.size()) laps.resize(r.lap_times_s.size());  // the run-out
-      plot_speed(bound, laps, track.name + ": speed over distance against the lap-time bound",
-                 options.out_dir / "speed.png");
-    });
   return result;
 }
 

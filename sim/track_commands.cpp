@@ -6,8 +6,8 @@
 #include <fstream>
 #include <ostream>
 #include <sstream>
-#include <tuple>
 #include <stdexcept>
+#include <tuple>
 
 #include "core/error.hpp"
 #include "sim/gnuplot.hpp"

@@ -9,8 +9,6 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
 #include "laptime/lap_time.hpp"
 #include "tracks/generator.hpp"
 #include "tracks/track.hpp"
