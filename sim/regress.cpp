@@ -91,6 +91,15 @@ std::string last_line(const fs::path& file) {
   return last;
 }
 
+// a short log whole, its lines joined by " / " (at most 300 characters)
+std::string log_text(const fs::path& file) {
+  std::ifstream in(file);
+  std::string line, all;
+  while (std::getline(in, line))
+    if (!line.empty()) all += (all.empty() ? "" : " / ") + line;
+  return all.size() > 300 ? all.substr(0, 297) + "..." : all;
+}
+
 // a scenario may drive a layout made for its event, and autocross may also run on a circuit
 bool events_match(EventType scenario, EventType track) {
   return scenario == track ||
@@ -177,7 +186,7 @@ void add_generated(const fs::path& self, const RegressOptions& o,
     if (pid < 0 || waitpid(pid, &status, 0) < 0 || exit_status(status) != 0)
       throw InputError(
           "--generated", 0,
-          "`conesim track generate` failed for seed " + std::to_string(k) + ": " + last_line(log));
+          "`conesim track generate` failed for seed " + std::to_string(k) + ": " + log_text(log));
     fs::remove(log);
     tracks.push_back(*read_planned(file, "generated/" + name, nullptr));
   }
