@@ -637,6 +637,7 @@ std::string describe_noise(const BaselineNoise& n) {
 
 json summary_json(const std::vector<RunRow>& rows, const RegressionPlan& plan,
                   const RegressOptions& o, double wall_s, const BaselineComparison* comparison) {
+  const BaselineNoise n;
   int passed = 0, regressed = 0;
   json runs = json::array();
   for (const RunRow& r : rows) {
@@ -668,6 +669,16 @@ json summary_json(const std::vector<RunRow>& rows, const RegressionPlan& plan,
             {"skipped_tracks", plan.skipped.size()},
             {"event_mismatches_left_out", plan.event_mismatches}}},
           {"noise", describe_noise()},
+          {"noise_thresholds",
+           {{"time_relative", n.time_relative},
+            {"time_absolute_s", n.time_absolute_s},
+            {"rmse_relative", n.rmse_relative},
+            {"rmse_absolute_m", n.rmse_absolute_m},
+            {"median_rmse_relative", n.median_rmse_relative},
+            {"median_rmse_absolute_m", n.median_rmse_absolute_m},
+            {"median_min_runs", n.median_min_runs},
+            {"association_fraction_absolute", n.association_fraction_absolute},
+            {"perception_fraction_absolute", n.fraction_absolute}}},
           {"baseline", baseline},
           {"skipped_tracks", skipped},
           {"runs", runs}};
