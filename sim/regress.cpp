@@ -569,7 +569,9 @@ BaselineComparison compare_to_baseline(std::vector<RunRow>& rows,
       return std::max(noise.rmse_relative * was, noise.rmse_absolute_m);
     };
     worse("best lap", b.best_lap_s, r.best_lap_s, time_noise(b.best_lap_s), "s");
-    worse("final time", b.final_time_s, r.final_time_s, time_noise(b.final_time_s), "s");
+    // summaries before DNF rows had no final time gave 0 for it: no time to compare with
+    if (b.final_time_s > 0.0)
+      worse("final time", b.final_time_s, r.final_time_s, time_noise(b.final_time_s), "s");
     worse("cones hit", b.cones_hit, r.cones_hit, 0.0, "");
     worse("off-course", b.off_course, r.off_course, 0.0, "");
     worse("SLAM map RMSE", b.map_rmse_m, r.map_rmse_m, rmse_noise(b.map_rmse_m), "m");
