@@ -91,6 +91,15 @@ std::string last_line(const fs::path& file) {
   return last;
 }
 
+// a short log whole, its lines joined by " / " (at most 300 characters)
+std::string log_text(const fs::path& file) {
+  std::ifstream in(file);
+  std::string line, all;
+  while (std::getline(in, line))
+    if (!line.empty()) all += (all.empty() ? "" : " / ") + line;
+  return all.size() > 300 ? all.substr(0, 297) + "..." : all;
+}
+
 // a scenario may drive a layout made for its event, and autocross may also run on a circuit
 bool events_match(EventType scenario, EventType track) {
   return scenario == track ||
@@ -177,7 +186,7 @@ void add_generated(const fs::path& self, const RegressOptions& o,
     if (pid < 0 || waitpid(pid, &status, 0) < 0 || exit_status(status) != 0)
       throw InputError(
           "--generated", 0,
-          "`conesim track generate` failed for seed " + std::to_string(k) + ": " + last_line(log));
+          "`conesim track generate` failed for seed " + std::to_string(k) + ": " + log_text(log));
     fs::remove(log);
     tracks.push_back(*read_planned(file, "generated/" + name, nullptr));
   }
@@ -560,7 +569,9 @@ BaselineComparison compare_to_baseline(std::vector<RunRow>& rows,
       return std::max(noise.rmse_relative * was, noise.rmse_absolute_m);
     };
     worse("best lap", b.best_lap_s, r.best_lap_s, time_noise(b.best_lap_s), "s");
-    worse("final time", b.final_time_s, r.final_time_s, time_noise(b.final_time_s), "s");
+    // summaries before DNF rows had no final time gave 0 for it: no time to compare with
+    if (b.final_time_s > 0.0)
+      worse("final time", b.final_time_s, r.final_time_s, time_noise(b.final_time_s), "s");
     worse("cones hit", b.cones_hit, r.cones_hit, 0.0, "");
     worse("off-course", b.off_course, r.off_course, 0.0, "");
     worse("SLAM map RMSE", b.map_rmse_m, r.map_rmse_m, rmse_noise(b.map_rmse_m), "m");
@@ -628,6 +639,7 @@ std::string describe_noise(const BaselineNoise& n) {
 
 json summary_json(const std::vector<RunRow>& rows, const RegressionPlan& plan,
                   const RegressOptions& o, double wall_s, const BaselineComparison* comparison) {
+  const BaselineNoise n;
   int passed = 0, regressed = 0;
   json runs = json::array();
   for (const RunRow& r : rows) {
@@ -659,6 +671,16 @@ json summary_json(const std::vector<RunRow>& rows, const RegressionPlan& plan,
             {"skipped_tracks", plan.skipped.size()},
             {"event_mismatches_left_out", plan.event_mismatches}}},
           {"noise", describe_noise()},
+          {"noise_thresholds",
+           {{"time_relative", n.time_relative},
+            {"time_absolute_s", n.time_absolute_s},
+            {"rmse_relative", n.rmse_relative},
+            {"rmse_absolute_m", n.rmse_absolute_m},
+            {"median_rmse_relative", n.median_rmse_relative},
+            {"median_rmse_absolute_m", n.median_rmse_absolute_m},
+            {"median_min_runs", n.median_min_runs},
+            {"association_fraction_absolute", n.association_fraction_absolute},
+            {"perception_fraction_absolute", n.fraction_absolute}}},
           {"baseline", baseline},
           {"skipped_tracks", skipped},
           {"runs", runs}};

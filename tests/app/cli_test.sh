@@ -177,6 +177,8 @@ check regress_bad_set 2 "$bin" regress acceleration --set driver.no_such_key=1 -
 check regress_bad_track 2 "$bin" regress acceleration --track "$work/missing.csv" --out "$work/rg5"
 check regress_malformed_track 2 "$bin" regress autocross \
   --track "$data/tracks/eufs/track_created.csv" --out "$work/rg5"
+check regress_bad_profile 2 "$bin" regress --generated 1:no-such-profile --list --out "$work/rg5"
+expect_text regress_bad_profile "$work/err" 'track generate. failed for seed 1: .*no-such-profile'
 check regress_bad_seeds 2 "$bin" regress acceleration --seeds 3-1 --out "$work/rg5"
 check regress_bad_tracks 2 "$bin" regress --tracks "$work/no-such-folder" --out "$work/rg5"
 check regress_bad_baseline 2 "$bin" regress acceleration --baseline "$work/missing.json" \
