@@ -6,6 +6,7 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "control/drivability.hpp"
 #include "control/driver.hpp"
 #include "sim/slam_runner.hpp"
 #include "sim/track_commands.hpp"
@@ -92,7 +93,32 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
   return failures;
 }
 
+// what the driver knows of the car: its geometry and its envelope at full measured grip
+control::VehicleGeometry driver_vehicle(const vehicle_models::VehicleParams& vp) {
+  control::VehicleGeometry g;
+  g.wheelbase_m = vp.wheelbase_m;
+  g.max_steer_rad = vp.max_steer_rad;
+  g.rear_axle_to_front_m = vp.front_overhang_from_rear_axle_m;
+  g.rear_axle_to_back_m = vp.length_m - vp.front_overhang_from_rear_axle_m;
+  g.width_m = vp.width_m;
+  g.envelope = vehicle_models::PerformanceEnvelope::of(vp, 1.0);
+  // the measured yaw loss is the anti-Ackermann car's; Ackermann steering keeps within 1.4 %
+  if (vp.ackermann_factor >= 0.0) g.yaw_gain.clear();
+  return g;
+}
+
 }  // namespace
+
+std::string drivability_problem(const Scenario& s, const tracks::Track& track) {
+  if (s.event != core::EventType::kAutocross && s.event != core::EventType::kTrackdrive) return {};
+  std::vector<core::MapCone> cones;
+  for (const tracks::Cone& c : track.cones)
+    cones.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
+  const control::Drivability d = control::check_drivability(
+      track.lane_points(track.left_lane), track.lane_points(track.right_lane), track.centre_line,
+      track.closed, cones, driver_vehicle(s.vehicle));
+  return d.reason;
+}
 
 tracks::Track scenario_track(const Scenario& s) {
   if (s.track.file) return tracks::read_track(*s.track.file);
@@ -149,7 +175,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   core::Pose2 driving_pose = car.truth().pose;
   core::ConeObservations latest_detections;
   core::Pose2 latest_capture_pose;
-  control::Driver driver(s.event, s.driver, {vp.wheelbase_m, vp.max_steer_rad, vp.front_overhang_from_rear_axle_m}, prior_map);
+  control::Driver driver(s.event, s.driver, driver_vehicle(vp), prior_map);
 
   // the schedule on the integer clock
   const TimeUs step_us = core::from_seconds(car.timestep_s());
@@ -272,6 +298,9 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     result.referee.completed = false;
     result.referee.dnf_reason = dnf_override;
   }
+  // the driver's own word on why it could not go on
+  if (!result.referee.completed && !driver.status().problem.empty())
+    result.referee.dnf_reason += " (driver: " + driver.status().problem + ")";
   const nlohmann::json slam_metrics = slam ? slam->metrics() : nlohmann::json();
   result.failures = check_pass(s.pass, result.referee, slam_metrics);
   result.passed = result.failures.empty();
