@@ -51,8 +51,11 @@ constexpr double kExploreHorizonM = 25.0;
 constexpr double kMinLocalPathM = 4.0;
 // share of the braking limit planned for stopping at the end of the known path
 constexpr double kEndOfPathDecelShare = 0.5;
-// a lap counts only after this distance since the previous one (or the start), metres
-constexpr double kMinLapDistanceM = 100.0;
+// a lap counts only after this distance since the previous one (or the start), metres (the
+// racing line of eufs peanut is under 100 m)
+constexpr double kMinLapDistanceM = 50.0;
+// a steering command this share of full lock or more slows the car to the tight-turn speed
+constexpr double kSteerSaturationShare = 0.9;
 // the lap line is searched among the big orange cones while the car is this close to the
 // start (by distance travelled), metres
 constexpr double kLapLineSearchOdometerM = 40.0;
@@ -285,6 +288,10 @@ struct Driver::Impl {
     } else {
       cmd.steer_rad = pure_pursuit(pursuit, est.pose, est.speed_mps, path, here).steer_rad;
     }
+    // steering near full lock: slow to the tight-turn speed, where the car still turns as
+    // steered (the path may curve less than the car must turn to come back onto it)
+    if (std::abs(cmd.steer_rad) >= kSteerSaturationShare * vehicle.max_steer_rad)
+      speed_cap = std::min(speed_cap, SpeedLimits{}.tight_turn_speed_mps);
     cmd.accel_mps2 = speed_command(est.speed_mps, s_here, speed_cap);
     return cmd;
   }

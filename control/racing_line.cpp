@@ -22,7 +22,7 @@ constexpr int kMaxActiveSetRounds = 60;
 constexpr int kMaxFootprintRounds = 10;
 // a narrowing is spread over this many points either side of where the footprint came too
 // close, and is this much more than the shortfall, metres
-constexpr int kNarrowHalfWindow = 3;
+constexpr int kNarrowHalfWindow = 6;
 constexpr double kNarrowExtraM = 0.05;
 // cones further than this from the rear axle cannot touch the footprint, metres
 constexpr double kFootprintReachM = 4.0;
@@ -213,11 +213,14 @@ RacingLine plan_racing_line(const Corridor& c, const std::vector<MapCone>& cones
       // the cone's side of the reference line loses room near this point
       const bool cone_left = c.normal[i].dot(at - c.centre[i]) > 0.0;
       const double cut = f.margin_m - clearance + kNarrowExtraM;
+      // tapered either side, so that the line bends smoothly round the cone rather than
+      // following a step of the bound
       for (int k = -kNarrowHalfWindow; k <= kNarrowHalfWindow; ++k) {
         const size_t j = neighbour(i, k, n, c.closed);
         if (!c.closed && j < 2) continue;
         if (lo[j] >= hi[j]) continue;  // no room left to give
-        (cone_left ? hi[j] : lo[j]) += cone_left ? -cut : cut;
+        const double share = 1.0 - static_cast<double>(std::abs(k)) / (kNarrowHalfWindow + 1);
+        (cone_left ? hi[j] : lo[j]) += (cone_left ? -cut : cut) * share;
         narrowed = true;
       }
     }

@@ -12,6 +12,7 @@
 #include "sim/track_commands.hpp"
 #include "sim/vehicle_sim.hpp"
 #include "tracks/io.hpp"
+#include "tracks/rules.hpp"
 
 namespace conesim::sim {
 
@@ -111,6 +112,9 @@ control::VehicleGeometry driver_vehicle(const vehicle_models::VehicleParams& vp)
 
 std::string drivability_problem(const Scenario& s, const tracks::Track& track) {
   if (s.event != core::EventType::kAutocross && s.event != core::EventType::kTrackdrive) return {};
+  // a car that starts off the track finds no path through the cones
+  for (const tracks::Violation& v : tracks::check_rules(track, s.event))
+    if (v.rule == "start_on_track") return v.message + ": the driver finds no path from there";
   std::vector<core::MapCone> cones;
   for (const tracks::Cone& c : track.cones)
     cones.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
