@@ -28,6 +28,10 @@ using core::VehicleCommand;
 constexpr double kStoppedSpeedMps = 0.3;
 // the speed target is read this far ahead in time, to make up for the actuator lag, s
 constexpr double kSpeedPreviewS = 0.2;
+// on the circuits the envelope limits the speed profile; the command and braking are capped
+// only this high (the car limits itself), and the lateral acceleration this high, m/s^2
+constexpr double kCircuitLongitudinalCapMps2 = 15.0;
+constexpr double kCircuitLateralCapMps2 = 30.0;
 // the path's curvature is read this far ahead in time for the steering lag, s, and averaged
 // over this span either side, metres
 constexpr double kSteerPreviewS = 0.12;
@@ -221,7 +225,7 @@ struct Driver::Impl {
       phase = Phase::kStopped;
     if (phase == Phase::kStopped) {
       status.finished = true;
-      cmd.accel_mps2 = -params.max_decel_mps2;
+      cmd.accel_mps2 = -decel_cap();
       cmd.hold_stopped = true;
       status.target_speed_mps = 0.0;
     }
@@ -258,7 +262,7 @@ struct Driver::Impl {
     VehicleCommand cmd;
     if (path.points.size() < 2) {
       status.target_speed_mps = 0.0;
-      cmd.accel_mps2 = -params.max_decel_mps2 * kEndOfPathDecelShare;
+      cmd.accel_mps2 = -decel_cap() * kEndOfPathDecelShare;
       return cmd;
     }
 
@@ -323,19 +327,34 @@ struct Driver::Impl {
     const double v1 = std::min(speed_cap, profile.speed_at(s0 + kFeedForwardSpanM, lap_m));
     const double feed_forward = (v1 * v1 - v0 * v0) / (2.0 * kFeedForwardSpanM);
     const double a = feed_forward + params.speed_gain_per_s * (v0 - v);
-    return std::clamp(a, -params.max_decel_mps2, params.max_accel_mps2);
+    return std::clamp(a, -decel_cap(), accel_cap());
   }
 
   // the speed limits with a cap: the envelope at the grip fraction
   SpeedLimits limits(double cap) const {
     SpeedLimits l;
     l.max_speed_mps = cap;
-    l.max_lateral_accel_mps2 = params.max_lateral_accel_mps2;
-    l.max_accel_mps2 = params.max_accel_mps2;
-    l.max_decel_mps2 = params.max_decel_mps2;
+    l.max_lateral_accel_mps2 =
+        circuit_event() ? kCircuitLateralCapMps2 : params.max_lateral_accel_mps2;
+    l.max_accel_mps2 = accel_cap();
+    l.max_decel_mps2 = decel_cap();
+    if (!circuit_event()) return l;  // acceleration and skidpad keep their constant limits
     l.envelope = envelope;
     l.max_curvature = 1.0 / full_lock_radius_m(vehicle);
     return l;
+  }
+
+  // autocross and trackdrive plan from the envelope; acceleration and skidpad from the keys
+  bool circuit_event() const {
+    return event == EventType::kAutocross || event == EventType::kTrackdrive;
+  }
+
+  // the longitudinal limits of the speed command and of braking, m/s^2
+  double decel_cap() const {
+    return circuit_event() ? kCircuitLongitudinalCapMps2 : params.max_decel_mps2;
+  }
+  double accel_cap() const {
+    return circuit_event() ? kCircuitLongitudinalCapMps2 : params.max_accel_mps2;
   }
 
   // --- acceleration ---------------------------------------------------------------------------
@@ -367,7 +386,7 @@ struct Driver::Impl {
 
     // brake once past the finish line, or earlier if the braking zone would be too short
     const double v = std::max(0.0, est.speed_mps);
-    const double stop_x = x + v * v / (2.0 * kBrakingZoneDecelShare * params.max_decel_mps2);
+    const double stop_x = x + v * v / (2.0 * kBrakingZoneDecelShare * decel_cap());
     const double zone_end_x = finish_x_m + kBrakingZoneM - vehicle.rear_axle_to_front_m;
     if (phase == Phase::kLaunch &&
         (x > finish_x_m + kBrakePastFinishM || stop_x > zone_end_x - kBrakingZoneMarginM))
@@ -378,7 +397,7 @@ struct Driver::Impl {
                            : params.speed_gain_per_s * (params.acceleration_speed_mps - v);
       status.target_speed_mps = params.acceleration_speed_mps;
     } else {
-      cmd.accel_mps2 = -params.max_decel_mps2;
+      cmd.accel_mps2 = -decel_cap();
       status.target_speed_mps = 0.0;
     }
     return cmd;
@@ -459,8 +478,7 @@ struct Driver::Impl {
       status.problem = local.points.size() < 2 ? "no path through the cones ahead" : "";
       if (local.length() >= kMinLocalPathM || path.points.size() < 2) {
         path = local;
-        const double end_v =
-            std::sqrt(2.0 * kEndOfPathDecelShare * params.max_decel_mps2 * path.length());
+        const double end_v = std::sqrt(2.0 * kEndOfPathDecelShare * decel_cap() * path.length());
         profile = plan_speed(path, limits(params.explore_speed_mps), est.speed_mps, end_v);
         lap_m = 0.0;
         track_progress = false;
@@ -470,7 +488,7 @@ struct Driver::Impl {
     const double cap = phase == Phase::kFast ? params.fast_speed_mps : params.explore_speed_mps;
     VehicleCommand cmd = follow(est, cap);
     if (phase == Phase::kBraking) {
-      cmd.accel_mps2 = -params.max_decel_mps2;
+      cmd.accel_mps2 = -decel_cap();
       status.target_speed_mps = 0.0;
     }
     return cmd;

@@ -30,11 +30,12 @@ struct DriverParams {
   /// with 0.8 (it understeers near the limit and its grip saturates abruptly), 0.23 m with 0.7
   /// and 0.17 m with 0.6, for laps of 15.65, 16.38 and 17.33 s.
   double grip_fraction = 0.7;
-  /// Caps on the envelope's lateral acceleration and on the longitudinal limits of the speed
-  /// profile and of the speed command, m/s^2.
-  double max_lateral_accel_mps2 = 30.0;
-  double max_accel_mps2 = 15.0;
-  double max_decel_mps2 = 15.0;
+  /// Acceleration and skidpad: the lateral acceleration their speed profile plans for and the
+  /// longitudinal limits of their speed profile and command, m/s^2 (the circuits plan from the
+  /// envelope).
+  double max_lateral_accel_mps2 = 9.0;
+  double max_accel_mps2 = 6.0;
+  double max_decel_mps2 = 8.0;
   /// Clearance planned between the car's footprint (its whole rectangle) and any cone, metres.
   double footprint_margin_m = 0.3;
   /// Check before a run that the layout is drivable by this car (`conesim run` refuses one

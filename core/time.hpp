@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <ctime>
+#include <limits>
 
 namespace conesim::core {
 
@@ -27,9 +28,17 @@ inline bool whole_physics_steps(double rate_hz) {
 /// Seconds as a double (for physics and output).
 inline constexpr double to_seconds(TimeUs t) { return static_cast<double>(t) * 1e-6; }
 
-/// Whole microseconds from seconds, rounded to nearest.
+/// Whole microseconds from seconds, rounded to nearest. Saturates at the clock's limits (about
+/// +-292,000 years) instead of overflowing, and NaN gives 0: a conversion never has undefined
+/// behaviour, whatever a scenario asks for.
 inline constexpr TimeUs from_seconds(double s) {
-  return static_cast<TimeUs>(s * 1e6 + (s >= 0 ? 0.5 : -0.5));
+  // 2^63 us is exactly representable; anything at or past it does not fit
+  constexpr double kLimitUs = 9223372036854775808.0;
+  const double us = s * 1e6 + (s >= 0 ? 0.5 : -0.5);
+  if (us != us) return 0;
+  if (us >= kLimitUs) return std::numeric_limits<TimeUs>::max();
+  if (us <= -kLimitUs) return std::numeric_limits<TimeUs>::min();
+  return static_cast<TimeUs>(us);
 }
 
 /// CPU time the calling thread has used, ms: for timings that other processes on a shared

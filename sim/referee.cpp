@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numbers>
 #include <span>
@@ -15,6 +16,7 @@
 #include <utility>
 
 #include "tracks/fsg_layouts.hpp"
+#include "tracks/track_area.hpp"
 
 namespace conesim::sim {
 
@@ -33,9 +35,6 @@ constexpr double kSkidpadRadiusM = tracks::kSkidpadCentreDistanceM / 2.0;
 constexpr double kSkidpadLaneHalfWidthM = kSkidpadRadiusM - tracks::kSkidpadInnerConeRadiusM;
 /// The skidpad exit lane ends this far past the timing line (stop line at 21 m, fssim), metres.
 constexpr double kSkidpadExitLengthM = 25.0;
-/// Open layouts: the lanes are extended this far beyond their ends, so that a car standing at
-/// the start (wheels behind the first cone pair) or stopping at the end is on the track, metres.
-constexpr double kOpenLaneExtensionM = 10.0;
 /// Fallback gate: at least this far ahead of the front wing of a car at the start pose, metres.
 constexpr double kFallbackGateAheadM = 1.0;
 /// Gates shorter than this (posts on top of each other) are ignored, metres.
@@ -47,8 +46,6 @@ constexpr double kFallbackGateHalfLengthM = 3.0;
 /// Cell size of the cone grid and of the "left the track" grid, metres.
 constexpr double kConeCellM = 2.0;
 constexpr double kNearCellM = 4.0;
-/// Height of the horizontal bands of the point-in-polygon index, metres.
-constexpr double kPolygonBandM = 2.0;
 
 // a segment or, with a == b, a point
 struct Segment {
@@ -120,76 +117,6 @@ class ItemGrid {
   int ny_ = 0;
   std::vector<int> starts_;
   std::vector<int> items_;
-};
-
-// a closed polygon with its edges sorted into horizontal bands, so that the ray cast of a
-// point-in-polygon test only looks at the few edges of the point's band
-class BandedPolygon {
- public:
-  BandedPolygon() = default;
-  explicit BandedPolygon(std::vector<Vec2> vertices) : vertices_(std::move(vertices)) {
-    const size_t n = vertices_.size();
-    if (n < 3) {
-      vertices_.clear();
-      return;
-    }
-    double y_max = vertices_.front().y();
-    y0_ = y_max;
-    for (const Vec2& v : vertices_) {
-      y0_ = std::min(y0_, v.y());
-      y_max = std::max(y_max, v.y());
-    }
-    bands_ = std::max(1, static_cast<int>(std::ceil((y_max - y0_) / kPolygonBandM)) + 1);
-
-    // each edge goes into every band its y range overlaps (count, then fill)
-    std::vector<int> counts(static_cast<size_t>(bands_) + 1, 0);
-    auto band_range = [&](size_t e) {
-      const double ya = vertices_[e].y(), yb = vertices_[(e + 1) % n].y();
-      return std::pair(band_of(std::min(ya, yb)), band_of(std::max(ya, yb)));
-    };
-    for (size_t e = 0; e < n; ++e) {
-      const auto [b0, b1] = band_range(e);
-      for (int b = b0; b <= b1; ++b) ++counts[static_cast<size_t>(b) + 1];
-    }
-    for (size_t b = 1; b < counts.size(); ++b) counts[b] += counts[b - 1];
-    starts_ = counts;
-    edges_.resize(static_cast<size_t>(counts.back()));
-    for (size_t e = 0; e < n; ++e) {
-      const auto [b0, b1] = band_range(e);
-      for (int b = b0; b <= b1; ++b) edges_[static_cast<size_t>(counts[b]++)] = int(e);
-    }
-  }
-
-  bool empty() const { return vertices_.empty(); }
-
-  // even-odd rule with a ray towards +x
-  bool contains(const Vec2& p) const {
-    if (vertices_.empty()) return false;
-    const int b = band_of(p.y());
-    if (p.y() < y0_ || b >= bands_) return false;
-    const size_t n = vertices_.size();
-    bool inside = false;
-    for (int k = starts_[b]; k < starts_[b + 1]; ++k) {
-      const size_t e = static_cast<size_t>(edges_[static_cast<size_t>(k)]);
-      const Vec2& a = vertices_[e];
-      const Vec2& c = vertices_[(e + 1) % n];
-      if ((a.y() > p.y()) == (c.y() > p.y())) continue;
-      const double x = a.x() + (p.y() - a.y()) * (c.x() - a.x()) / (c.y() - a.y());
-      if (x > p.x()) inside = !inside;
-    }
-    return inside;
-  }
-
- private:
-  int band_of(double y) const {
-    return std::clamp(static_cast<int>((y - y0_) / kPolygonBandM), 0, bands_);
-  }
-
-  std::vector<Vec2> vertices_;
-  double y0_ = 0.0;
-  int bands_ = 0;
-  std::vector<int> starts_;
-  std::vector<int> edges_;
 };
 
 // a time-keeping gate with its driving direction
@@ -320,12 +247,20 @@ struct CarFrame {
   }
 };
 
+// a point for messages: "(12.3, -4.5)"
+std::string place(const Vec2& p) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "(%.1f, %.1f)", p.x(), p.y());
+  return buf;
+}
+
 // how the track's boundaries are judged
-enum class Boundary { kNone, kRings, kPolygon, kSkidpad };
+enum class Boundary { kNone, kArea, kSkidpad };
 
 // one cone as the referee sees it
 struct RefCone {
   int id = 0;
+  core::ConeClass cls = core::ConeClass::kUnknown;
   Vec2 position = Vec2::Zero();
   double radius_m = 0.0;
 };
@@ -345,9 +280,10 @@ struct Referee::Impl {
   std::vector<RefCone> cones;
   std::vector<std::pair<int, int>> index_of_id;  // (id, index in cones), sorted by id
   ItemGrid cone_grid;
-  std::vector<GateLine> gates;  // [0] starts the timing; acceleration: [1] is the finish
+  std::vector<GateLine> gates;        // [0] starts the timing
+  std::optional<size_t> finish_gate;  // acceleration, open courses: the gate that ends the lap
   Boundary boundary = Boundary::kNone;
-  BandedPolygon ring_left, ring_right, polygon;
+  tracks::TrackArea area;
   SkidpadArea skidpad;
   std::vector<Segment> near_items;  // centre-line segments and cones for "left the track"
   ItemGrid near_grid;
@@ -370,6 +306,9 @@ struct Referee::Impl {
   double yaw_at_last_crossing_rad = 0.0;
   std::optional<double> laps_done_s;  // when the event's last timed crossing happened
   bool off_course_now = false;
+  std::optional<size_t> open_off_course;  // the event of the excursion going on, if any
+  double now_s = 0.0;                     // time and true pose of the step being judged
+  Pose2 now_pose;
   std::optional<core::TimeUs> slow_since_us;     // below stuck_speed_mps since
   std::optional<core::TimeUs> stopped_since_us;  // below stopped_speed_mps since
 
@@ -379,6 +318,9 @@ struct Referee::Impl {
   void judge_gates(core::TimeUs t, const Vec2& front);
   void on_forward_crossing(size_t gate, double time_s);
   void judge_cones(const CarFrame& car);
+  void judge_off_course(const VehicleTruth& truth, const CarFrame& car);
+  RefereeEvent event_now(RefereeEvent::Kind kind, std::string reason, double penalty_s) const;
+  void close_off_course();
   bool wheels_off_course(const VehicleTruth& truth) const;
   bool left_the_track(const Vec2& p) const;
   void judge_finish_and_stops(core::TimeUs t, const VehicleTruth& truth, const CarFrame& car);
@@ -407,7 +349,7 @@ Referee::Impl::Impl(const Track& track, core::EventType e,
   double max_radius = 0.0;
   for (const tracks::Cone& c : track.cones) {
     const double r = 0.5 * core::cone_size(c.cls).base_m;
-    cones.push_back({c.id, c.position, r});
+    cones.push_back({c.id, c.cls, c.position, r});
     cone_points.push_back({c.position, c.position});
     index_of_id.emplace_back(c.id, static_cast<int>(cones.size()) - 1);
     max_radius = std::max(max_radius, r);
@@ -418,15 +360,35 @@ Referee::Impl::Impl(const Track& track, core::EventType e,
   cone_grid.build(cone_points, footprint_half_diagonal + max_radius, kConeCellM);
 
   // gates: the track's, oriented along the track, or a fallback across it ahead of the start
+  // (along the centre line where it runs once through a gate: skidpad's crosses its own)
   for (const tracks::Gate& g : track.timing_gates) {
     if ((g.left - g.right).norm() < kMinGateLengthM) continue;
-    const Vec2 hint =
-        track.closed ? direction_near(track, 0.5 * (g.left + g.right)) : track.start.heading();
+    const Vec2 hint = e != EventType::kSkidpad && track.centre_line.size() >= 2
+                          ? direction_near(track, 0.5 * (g.left + g.right))
+                          : track.start.heading();
     gates.push_back(oriented_gate(g, hint));
   }
   if (gates.empty()) gates.push_back(fallback_gate(track, e, front_m));
   if (e == EventType::kAcceleration && gates.size() < 2)
     gates.push_back(gates.front().shifted(tracks::kAccelerationLengthM));
+
+  // an open course driven as autocross (a point-to-point layout) finishes across the ends of
+  // its lanes, unless the layout has a gate of its own there; one pass is its lap
+  const bool open_course =
+      !track.closed && (e == EventType::kAutocross || e == EventType::kTrackdrive);
+  if (open_course && gates.size() < 2 && !track.left_lane.empty() && !track.right_lane.empty()) {
+    const Vec2 left_end = track.cone(track.left_lane.back()).position;
+    const Vec2 right_end = track.cone(track.right_lane.back()).position;
+    const Vec2 out = (left_end - right_end).normalized();
+    const tracks::Gate end{left_end + kFallbackGatePostOutsideM * out,
+                           right_end - kFallbackGatePostOutsideM * out};
+    gates.push_back(oriented_gate(end, direction_near(track, 0.5 * (left_end + right_end))));
+  }
+  if (e == EventType::kAcceleration) finish_gate = 1;
+  if (open_course && gates.size() >= 2) {
+    finish_gate = gates.size() - 1;
+    laps_required = 1;
+  }
   gate_debt.assign(gates.size(), 0);
 
   // acceleration: the braking zone ends at the farthest cone past the finish
@@ -440,29 +402,12 @@ Referee::Impl::Impl(const Track& track, core::EventType e,
   }
 
   // boundaries for off-course
-  const std::vector<Vec2> left = track.lane_points(track.left_lane);
-  const std::vector<Vec2> right = track.lane_points(track.right_lane);
   if (e == EventType::kSkidpad) {
     boundary = Boundary::kSkidpad;
     skidpad = SkidpadArea(gates.front(), track.start.position());
-  } else if (track.closed && left.size() >= 3 && right.size() >= 3) {
-    boundary = Boundary::kRings;
-    ring_left = BandedPolygon(left);
-    ring_right = BandedPolygon(right);
-  } else if (!track.closed && left.size() >= 2 && right.size() >= 2) {
-    // open: left lane out, right lane back, each extended along its end segments
-    boundary = Boundary::kPolygon;
-    auto extend = [](const Vec2& end, const Vec2& inner) {
-      const Vec2 d = end - inner;
-      return d.norm() > 0.0 ? Vec2(end + kOpenLaneExtensionM * d.normalized()) : end;
-    };
-    std::vector<Vec2> outline{extend(left.front(), left[1])};
-    outline.insert(outline.end(), left.begin(), left.end());
-    outline.push_back(extend(left.back(), left[left.size() - 2]));
-    outline.push_back(extend(right.back(), right[right.size() - 2]));
-    outline.insert(outline.end(), right.rbegin(), right.rend());
-    outline.push_back(extend(right.front(), right[1]));
-    polygon = BandedPolygon(std::move(outline));
+  } else {
+    area = tracks::TrackArea::of(track);
+    if (!area.empty()) boundary = Boundary::kArea;
   }
 
   // "left the track": the centre line's segments and every cone
@@ -519,9 +464,9 @@ void Referee::Impl::on_forward_crossing(size_t gate, double time_s) {
   }
   if (!timing_start_s || result.laps >= laps_required) return;
 
-  // acceleration: the finish gate ends the run
-  if (event == EventType::kAcceleration) {
-    if (gate != 1) return;
+  // acceleration and open courses: the finish gate ends the run
+  if (finish_gate) {
+    if (gate != *finish_gate) return;
   } else if (gate != 0) {
     return;  // sector gates and a skidpad exit gate do not count laps
   }
@@ -556,6 +501,14 @@ void Referee::Impl::judge_cones(const CarFrame& car) {
     if (dx * dx + dy * dy > cones[k].radius_m * cones[k].radius_m) continue;
     knocked[k] = 1;
     result.cones_hit.push_back(cones[k].id);
+    RefereeEvent e = event_now(RefereeEvent::Kind::kConeHit,
+                               "hit " + std::string(core::to_string(cones[k].cls)) + " cone " +
+                                   std::to_string(cones[k].id) + " at " + place(cones[k].position),
+                               cone_penalty_s);
+    e.cone_id = cones[k].id;
+    e.cone_class = cones[k].cls;
+    e.cone_position = cones[k].position;
+    result.events.push_back(std::move(e));
   }
 }
 
@@ -563,10 +516,8 @@ bool Referee::Impl::wheels_off_course(const VehicleTruth& truth) const {
   // off course only when every wheel is outside the boundaries
   auto on_track = [this](const Vec2& w) {
     switch (boundary) {
-      case Boundary::kRings:
-        return ring_left.contains(w) != ring_right.contains(w);
-      case Boundary::kPolygon:
-        return polygon.contains(w);
+      case Boundary::kArea:
+        return area.contains(w);
       case Boundary::kSkidpad:
         return skidpad.distance_to_path(w) <= kSkidpadLaneHalfWidthM;
       case Boundary::kNone:
@@ -668,14 +619,61 @@ void Referee::Impl::dnf(core::TimeUs t, const std::string& reason) {
   if (finished) return;
   finished = true;
   result.completed = false;
-  result.dnf_reason = reason;
+  // the reason says where: the middle of the car's footprint
+  const CarFrame car(now_pose);
+  result.dnf_reason = reason + " at " + place(car.ahead(0.5 * (front_m - rear_m)));
+  close_off_course();
+  result.events.push_back(event_now(RefereeEvent::Kind::kDnf, result.dnf_reason, 0.0));
   update_times(core::to_seconds(t));
 }
 
 void Referee::Impl::complete(core::TimeUs t) {
   finished = true;
   result.completed = true;
+  close_off_course();
   update_times(core::to_seconds(t));
+}
+
+RefereeEvent Referee::Impl::event_now(RefereeEvent::Kind kind, std::string reason,
+                                      double penalty_s) const {
+  RefereeEvent e;
+  e.kind = kind;
+  e.t_s = now_s;
+  e.lap = timing_start_s ? std::min(result.laps + 1, laps_required) : 0;
+  e.pose = now_pose;
+  e.reason = std::move(reason);
+  e.penalty_s = penalty_s;
+  return e;
+}
+
+void Referee::Impl::judge_off_course(const VehicleTruth& truth, const CarFrame& car) {
+  // one penalty per excursion: an event when all four wheels go out, its length when one is back
+  const bool off = wheels_off_course(truth);
+  if (off && !off_course_now) {
+    ++result.off_course;
+    const Vec2 centre = car.ahead(0.5 * (front_m - rear_m));
+    std::string where = "all four wheels off the track at " + place(centre);
+    if (const auto b = area.nearest_boundary(centre)) {
+      char buf[96];
+      std::snprintf(buf, sizeof buf, ", %.1f m from the %s boundary", b->distance_m,
+                    b->left ? "left (blue)" : "right (yellow)");
+      where += buf;
+    }
+    RefereeEvent e = event_now(RefereeEvent::Kind::kOffCourse, where, params.off_course_penalty_s);
+    e.wheels = truth.wheel_positions;
+    open_off_course = result.events.size();
+    result.events.push_back(std::move(e));
+  } else if (!off && off_course_now) {
+    close_off_course();
+  }
+  off_course_now = off;
+}
+
+void Referee::Impl::close_off_course() {
+  if (!open_off_course) return;
+  RefereeEvent& e = result.events[*open_off_course];
+  e.duration_s = now_s - e.t_s;
+  open_off_course.reset();
 }
 
 void Referee::Impl::update_times(double now_s) {
@@ -735,6 +733,18 @@ Referee::Referee(const tracks::Track& track, core::EventType event,
 
 Referee::~Referee() = default;
 
+const char* to_string(RefereeEvent::Kind kind) {
+  switch (kind) {
+    case RefereeEvent::Kind::kConeHit:
+      return "cone_hit";
+    case RefereeEvent::Kind::kOffCourse:
+      return "off_course";
+    case RefereeEvent::Kind::kDnf:
+      return "dnf";
+  }
+  return "unknown";
+}
+
 void Referee::update(core::TimeUs t, const VehicleTruth& truth) {
   Impl& s = *impl_;
   if (s.finished) return;
@@ -743,6 +753,8 @@ void Referee::update(core::TimeUs t, const VehicleTruth& truth) {
   const Vec2 front = car.ahead(s.front_m);
 
   // the first call marks the run start; later ones judge the motion since the previous one
+  s.now_s = core::to_seconds(t);
+  s.now_pose = pose;
   if (!s.have_previous) {
     s.have_previous = true;
     s.run_start_us = t;
@@ -759,11 +771,7 @@ void Referee::update(core::TimeUs t, const VehicleTruth& truth) {
   s.judge_cones(car);
 
   // off course: one penalty per excursion, judged while the car is timed
-  if (s.timing_start_s) {
-    const bool off = s.wheels_off_course(truth);
-    if (off && !s.off_course_now) ++s.result.off_course;
-    s.off_course_now = off;
-  }
+  if (s.timing_start_s) s.judge_off_course(truth, car);
 
   // far from the track, or past the end of the braking zone
   const Vec2 centre = car.ahead(0.5 * (s.front_m - s.rear_m));
@@ -794,6 +802,10 @@ bool Referee::is_knocked(int cone_id) const {
   const auto it = std::lower_bound(index.begin(), index.end(), std::pair(cone_id, -1));
   return it != index.end() && it->first == cone_id &&
          impl_->knocked[static_cast<size_t>(it->second)] != 0;
+}
+
+bool Referee::all_wheels_off(const VehicleTruth& truth) const {
+  return impl_->wheels_off_course(truth);
 }
 
 int Referee::laps() const {

@@ -9,18 +9,24 @@
 //   interpolated between physics steps. Crossings backwards are owed and cancel the next forward
 //   crossing. A track without gates gets one across the centre line just ahead of the start
 //   (skidpad: kSkidpadStartToTimingLineM ahead; acceleration: a finish gate 75 m further on).
+// - Open layouts driven as autocross (point-to-point courses) finish at the track's last gate,
+//   or at a gate across the ends of their lanes; one pass is their lap.
 // - Timeouts run from the first gate crossing; until the car reaches it they run from the run
 //   start (the first update), so a car that never reaches the line is DNF too.
 // - Off-course (all four wheels outside) is judged from the first gate crossing to the end.
-//   Circuits: between the left and the right lane rings; open layouts: inside the polygon of the
-//   left lane and the reversed right lane; skidpad: within 1.65 m (the cone lines) of the circles
-//   of radius 9.125 m or of the entry/exit lane, built from the timing gate.
+//   A wheel is on the track when its contact patch lies between the lanes (tracks::TrackArea:
+//   circuits between the closed lanes, open layouts between the lanes extended 10 m past their
+//   ends); skidpad: within 1.65 m (the cone lines) of the circles of radius 9.125 m or of the
+//   entry/exit lane, built from the timing gate.
+// - Every cone hit, off-course and DNF is kept as an event with its time, lap and place.
 
+#include <array>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "core/cone.hpp"
 #include "core/event.hpp"
 #include "core/time.hpp"
 #include "sim/vehicle_sim.hpp"
@@ -60,11 +66,39 @@ struct RefereeParams {
   std::string validate() const;
 };
 
+/// One thing the referee ruled on during the run, where and when it happened.
+struct RefereeEvent {
+  enum class Kind { kConeHit, kOffCourse, kDnf };
+  Kind kind = Kind::kConeHit;
+  /// Sim time of the event, seconds.
+  double t_s = 0.0;
+  /// The lap in progress: 0 before the timing starts, then laps counted + 1.
+  int lap = 0;
+  /// The car's rear-axle pose at the event.
+  core::Pose2 pose;
+  /// What happened and where, for people: "hit blue cone 17 at (3.20, -1.50)".
+  std::string reason;
+  /// Time added for it, seconds (0 for a DNF).
+  double penalty_s = 0.0;
+  /// Cone hits: the cone's id, class and position.
+  int cone_id = -1;
+  core::ConeClass cone_class = core::ConeClass::kUnknown;
+  core::Vec2 cone_position = core::Vec2::Zero();
+  /// Off-course: the four contact patches (FL, FR, RL, RR) when the car went off, and how long
+  /// it stayed off (until the end of the run when it never came back), seconds.
+  std::array<core::Vec2, 4> wheels{};
+  double duration_s = 0.0;
+};
+
+/// The name of an event kind in metrics.json: "cone_hit", "off_course", "dnf".
+const char* to_string(RefereeEvent::Kind kind);
+
 /// What the referee decided (copied into metrics.json).
 struct RefereeResult {
   bool completed = false;
-  /// Empty unless DNF: "timeout", "timeout (first lap)", "stuck", "stopped early", "left the
-  /// track", "overran braking zone", "wrong direction", "did not stop".
+  /// Empty unless DNF: what ended the run and where the car's footprint centre was, e.g.
+  /// "stuck at (12.3, -4.5)". The kinds: "timeout", "timeout (first lap)", "stuck", "stopped
+  /// early", "left the track", "overran braking zone", "wrong direction", "did not stop".
   std::string dnf_reason;
   /// Laps counted at the gate (acceleration: 1 once the finish gate is crossed).
   int laps = 0;
@@ -73,6 +107,8 @@ struct RefereeResult {
   /// Ids of the cones knocked over, in the order they were hit.
   std::vector<int> cones_hit;
   int off_course = 0;
+  /// Every cone hit, off-course and DNF in the order they happened.
+  std::vector<RefereeEvent> events;
   /// Raw time from the first gate to the finish (or to the end of the run), seconds. Skidpad:
   /// the average of the timed laps (the second right and the second left lap).
   double raw_time_s = 0.0;
@@ -101,6 +137,10 @@ class Referee {
 
   /// The verdict so far.
   const RefereeResult& result() const;
+
+  /// The FSG off-course rule applied to one state: true when all four wheels' contact patches
+  /// lie outside the track's boundaries (whether or not the car is being timed).
+  bool all_wheels_off(const VehicleTruth& truth) const;
 
   /// True when the cone with this id has been knocked over (hidden from sensors and renders).
   bool is_knocked(int cone_id) const;

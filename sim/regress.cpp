@@ -4,19 +4,56 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
 #include <fstream>
 #include <map>
-#include <nlohmann/json.hpp>
 #include <ostream>
+#include <set>
+#include <sstream>
+
+#include "core/error.hpp"
+#include "sim/report.hpp"
+#include "sim/scenario.hpp"
+#include "tracks/io.hpp"
+#include "tracks/rules.hpp"
 
 namespace conesim::sim {
 
 namespace fs = std::filesystem;
+using core::EventType;
+using core::InputError;
+using nlohmann::json;
 
 namespace {
+
+// the shipped scenarios `conesim regress` runs without arguments, and their seeds: circuits vary
+// with the seed, the FSG layouts do not
+struct DefaultScenario {
+  const char* name;
+  std::vector<unsigned long long> seeds;
+};
+const std::vector<DefaultScenario>& default_scenarios() {
+  static const std::vector<DefaultScenario> list = {
+      {"skidpad", {1}},
+      {"acceleration", {1}},
+      {"autocross", {1, 2, 3}},
+      {"trackdrive", {1, 2}},
+      {"skidpad-graphslam", {1}},
+      {"acceleration-graphslam", {1}},
+      {"trackdrive-graphslam", {1}},
+  };
+  return list;
+}
+
+// a track the runs drive on, with the event its layout is for
+struct PlannedTrack {
+  std::string label;
+  fs::path file;
+  EventType event = EventType::kTrackdrive;
+};
 
 // starts `argv` with stdout and stderr into log_file; returns the child's pid
 pid_t spawn(const std::vector<std::string>& argv, const fs::path& log_file) {
@@ -38,35 +75,852 @@ pid_t spawn(const std::vector<std::string>& argv, const fs::path& log_file) {
   return pid;
 }
 
-std::string format_row(const std::vector<std::string>& cells, const std::vector<int>& widths) {
-  std::string row;
-  for (size_t i = 0; i < cells.size(); ++i) {
-    std::string c = cells[i];
-    if (static_cast<int>(c.size()) < widths[i]) c.resize(widths[i], ' ');
-    row += (i ? "  " : "") + c;
+// the exit status of a finished child: its code, or 128 + the signal that ended it
+int exit_status(int status) {
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+// the last non-empty line of a log
+std::string last_line(const fs::path& file) {
+  std::ifstream in(file);
+  std::string line, last;
+  while (std::getline(in, line)) {
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    if (!line.empty()) last = line;
   }
-  while (!row.empty() && row.back() == ' ') row.pop_back();
-  return row;
+  return last;
+}
+
+// a scenario may drive a layout made for its event, and autocross may also run on a circuit
+bool events_match(EventType scenario, EventType track) {
+  return scenario == track ||
+         (scenario == EventType::kAutocross && track == EventType::kTrackdrive);
+}
+
+// a path without its extension, relative to `base`, with '/' separators
+std::string label_of(const fs::path& file, const fs::path& base) {
+  fs::path rel = file.lexically_relative(base);
+  if (rel.empty() || rel.native().starts_with("..")) rel = file.filename();
+  return (rel.parent_path() / rel.stem()).generic_string();
+}
+
+bool is_track_file(const fs::path& p) {
+  const std::string ext = p.extension().string();
+  return ext == ".yaml" || ext == ".yml" || ext == ".csv";
+}
+
+// a track of a folder or list: read it to learn its event, or say why it cannot be
+std::optional<PlannedTrack> read_planned(const fs::path& file, const std::string& label,
+                                         std::vector<SkippedTrack>* skipped) {
+  try {
+    const tracks::Track t = tracks::read_track(file);
+    return PlannedTrack{label, file, tracks::infer_event(t)};
+  } catch (const std::exception& e) {
+    if (!skipped) throw;
+    skipped->push_back({label, e.what()});
+    return std::nullopt;
+  }
+}
+
+// the tracks of --tracks: a folder, a list file or `corpus`
+void add_track_set(const std::string& set, std::vector<PlannedTrack>& tracks,
+                   std::vector<SkippedTrack>& skipped) {
+  const fs::path where = set == "corpus" ? shipped_corpus_dir() : fs::path(set);
+  if (fs::is_directory(where)) {
+    // every track file under the folder, sorted
+    std::vector<fs::path> files;
+    for (const auto& e : fs::recursive_directory_iterator(where))
+      if (e.is_regular_file() && is_track_file(e.path())) files.push_back(e.path());
+    std::sort(files.begin(), files.end());
+    if (files.empty()) throw InputError(set, 0, "no track files (.yaml, .yml, .csv) in the folder");
+    for (const fs::path& f : files)
+      if (auto t = read_planned(f, label_of(f, where), &skipped)) tracks.push_back(*t);
+    return;
+  }
+  if (!fs::is_regular_file(where))
+    throw InputError(set, 0, "no such folder or list of tracks (or `corpus`)");
+  // a list: one track path a line, relative to the list's folder; # starts a comment
+  std::ifstream in(where);
+  std::string line;
+  int line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    line = line.substr(0, line.find('#'));
+    while (!line.empty() && std::isspace(static_cast<unsigned char>(line.back()))) line.pop_back();
+    const size_t start = line.find_first_not_of(" \t");
+    if (start == std::string::npos) continue;
+    fs::path file = line.substr(start);
+    if (file.is_relative()) file = where.parent_path() / file;
+    if (!fs::is_regular_file(file))
+      throw InputError(where.string(), line_number, "no such track file: " + file.string());
+    tracks.push_back(*read_planned(file, label_of(file, where.parent_path()), nullptr));
+  }
+}
+
+// the generated circuits, written by `conesim track generate` (a profile passes through as is)
+void add_generated(const fs::path& self, const RegressOptions& o,
+                   std::vector<PlannedTrack>& tracks) {
+  if (o.generated <= 0) return;
+  const fs::path dir = o.out_dir / "tracks";
+  fs::create_directories(dir);
+  const std::string kind = o.generated_profile.empty() ? "trackdrive" : o.generated_profile;
+  for (int k = 1; k <= o.generated; ++k) {
+    const std::string name = kind + "-s" + std::to_string(k);
+    const fs::path file = dir / ("generated-" + name + ".csv");
+    std::vector<std::string> argv = {self.string(), "track",  "generate",       "--event",
+                                     "trackdrive",  "--seed", std::to_string(k)};
+    if (!o.generated_profile.empty()) argv.insert(argv.end(), {"--profile", o.generated_profile});
+    argv.insert(argv.end(), {"--out", file.string()});
+    const fs::path log = dir / ("generated-" + name + ".log");
+    const pid_t pid = spawn(argv, log);
+    int status = 0;
+    if (pid < 0 || waitpid(pid, &status, 0) < 0 || exit_status(status) != 0)
+      throw InputError(
+          "--generated", 0,
+          "`conesim track generate` failed for seed " + std::to_string(k) + ": " + last_line(log));
+    fs::remove(log);
+    tracks.push_back(*read_planned(file, "generated/" + name, nullptr));
+  }
+}
+
+// a run's folder name part: no '/' inside
+std::string flat(std::string s) {
+  std::replace(s.begin(), s.end(), '/', '_');
+  return s;
+}
+
+double number_or_nan(const json& j, const char* key) {
+  if (!j.is_object() || !j.contains(key) || !j[key].is_number()) return NAN;
+  return j[key].get<double>();
+}
+
+json finite_or_null(double v) {
+  return std::isfinite(v) ? json(v) : json(nullptr);
+}
+
+// HTML's escaping serves XML attributes and text; XML 1.0 allows no control characters but tab,
+// newline and carriage return
+std::string xml_escape(std::string text) {
+  for (char& c : text)
+    if (static_cast<unsigned char>(c) < 0x20 && c != '\t' && c != '\n' && c != '\r') c = ' ';
+  return html_escape(text);
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+std::string join(const std::vector<std::string>& parts, const std::string& sep) {
+  std::string out;
+  for (size_t i = 0; i < parts.size(); ++i) out += (i ? sep : "") + parts[i];
+  return out;
+}
+
+std::string fixed(double v, int decimals) {
+  if (!std::isfinite(v)) return "-";
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
+  return buf;
+}
+
+// where the penalties happened, one short phrase each
+std::string events_text(const RunRow& r) {
+  std::vector<std::string> parts;
+  for (const RunEvent& e : r.events) {
+    if (e.kind == "dnf") continue;  // the DNF reason says it
+    parts.push_back(e.kind + " lap " + std::to_string(e.lap) + " t " + fixed(e.t_s, 1) + " s at (" +
+                    fixed(e.x_m, 1) + ", " + fixed(e.y_m, 1) + ")" +
+                    (e.reason.empty() ? "" : ": " + e.reason));
+  }
+  return join(parts, "; ");
+}
+
+// the sources' commit ("-dirty" with uncommitted changes), when they are a git checkout
+std::string source_commit() {
+#ifdef CONESIM_SOURCE_DIR
+  const std::string cmd = "git -C '" + std::string(CONESIM_SOURCE_DIR) +
+                          "' describe --always --dirty --abbrev=12 2>/dev/null";
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return "";
+  char buf[64] = {};
+  const bool got = std::fgets(buf, sizeof(buf), p) != nullptr;
+  pclose(p);
+  std::string s = got ? buf : "";
+  while (!s.empty() && (s.back() == '\n' || s.back() == '\r')) s.pop_back();
+  return s;
+#else
+  return "";
+#endif
+}
+
+std::string utc_now() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char stamp[32];
+  std::strftime(stamp, sizeof(stamp), "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return stamp;
 }
 
 }  // namespace
 
-std::vector<RegressionRun> default_regression(const std::vector<std::string>& scenarios) {
-  // circuits vary with the seed; the FSG layouts do not, so one seed each
-  const std::map<std::string, std::vector<unsigned long long>> seeds = {
-      {"skidpad", {1}}, {"acceleration", {1}}, {"autocross", {1, 2, 3}}, {"trackdrive", {1, 2}}};
-  std::vector<std::string> names = scenarios;
-  if (names.empty()) names = {"skidpad", "acceleration", "autocross", "trackdrive"};
-  std::vector<RegressionRun> runs;
-  for (const std::string& n : names) {
-    const auto it = seeds.find(n);
-    if (it == seeds.end()) {
-      runs.push_back({n, 1});
+std::string RegressionRun::id() const {
+  return scenario + " | " + (track_label.empty() ? "scenario track" : track_label) + " | seed " +
+         std::to_string(seed);
+}
+
+std::vector<unsigned long long> parse_seeds(const std::string& text) {
+  std::vector<unsigned long long> seeds;
+  std::stringstream in(text);
+  std::string part;
+  auto bad = [&] {
+    return InputError("--seeds", 0,
+                      "expected seeds like 1,2,3 or 1-5 (or a mix: 1-3,7), got '" + text + "'");
+  };
+  auto number = [&](const std::string& s) {
+    if (s.empty() || s.find_first_not_of("0123456789") != std::string::npos) throw bad();
+    return std::stoull(s);
+  };
+  while (std::getline(in, part, ',')) {
+    const size_t dash = part.find('-');
+    if (dash == std::string::npos) {
+      seeds.push_back(number(part));
       continue;
     }
-    for (unsigned long long seed : it->second) runs.push_back({n, seed});
+    const unsigned long long from = number(part.substr(0, dash));
+    const unsigned long long to = number(part.substr(dash + 1));
+    if (to < from || to - from > 100000) throw bad();
+    for (unsigned long long s = from; s <= to; ++s) seeds.push_back(s);
   }
-  return runs;
+  if (seeds.empty()) throw bad();
+  return seeds;
+}
+
+fs::path shipped_corpus_dir() {
+  if (const char* env = std::getenv("CONESIM_CORPUS")) return env;
+#ifdef CONESIM_SOURCE_DIR
+  return fs::path(CONESIM_SOURCE_DIR) / "tests" / "data" / "tracks";
+#else
+  return "tests/data/tracks";
+#endif
+}
+
+RegressionPlan plan_regression(const fs::path& self, const RegressOptions& o) {
+  RegressionPlan plan;
+  // the scenarios and overrides first: a typo stops here, before tracks are made
+  const std::vector<std::string> check =
+      o.scenarios.empty()
+          ? std::vector<std::string>{"skidpad", "acceleration", "autocross", "trackdrive"}
+          : o.scenarios;
+  for (const std::string& name : check) load_scenario(find_scenario(name), o.sets);
+
+  // the tracks, read now so that a bad one stops everything before any run
+  std::vector<PlannedTrack> tracks;
+  for (const fs::path& f : o.track_files) {
+    if (!fs::is_regular_file(f)) throw InputError(f.string(), 0, "no such track file");
+    tracks.push_back(*read_planned(f, label_of(f, f.parent_path()), nullptr));
+  }
+  for (const std::string& set : o.track_sets) add_track_set(set, tracks, plan.skipped);
+  add_generated(self, o, tracks);
+  const bool on_given_tracks = !o.track_files.empty() || !o.track_sets.empty() || o.generated > 0;
+  if (on_given_tracks && tracks.empty())
+    throw InputError("--tracks", 0, "not one readable track to run on");
+  // labels name the run folders: the same label twice gets a number
+  std::map<std::string, int> label_count;
+  for (PlannedTrack& t : tracks)
+    if (const int n = ++label_count[t.label]; n > 1) t.label += "-" + std::to_string(n);
+
+  // the scenarios: as given, or the defaults (on given tracks: each track's own event)
+  std::vector<std::string> names = o.scenarios;
+  if (names.empty()) {
+    if (on_given_tracks) {
+      std::set<EventType> events;
+      for (const PlannedTrack& t : tracks) events.insert(t.event);
+      for (const char* n : {"skidpad", "acceleration", "autocross", "trackdrive"})
+        if (events.count(*core::event_from_string(n))) names.push_back(n);
+    } else {
+      for (const DefaultScenario& d : default_scenarios()) names.push_back(d.name);
+    }
+  }
+
+  for (const std::string& name : names) {
+    // every scenario loads with the overrides: a typo stops here, not in every run
+    const Scenario s = load_scenario(find_scenario(name), o.sets);
+    const std::string stem = fs::path(name).stem().string();
+    std::vector<unsigned long long> seeds = o.seeds;
+    if (seeds.empty()) {
+      seeds = {1};
+      if (!on_given_tracks)
+        for (const DefaultScenario& d : default_scenarios())
+          if (stem == d.name) seeds = d.seeds;
+    }
+    if (!on_given_tracks) {
+      for (unsigned long long seed : seeds)
+        plan.runs.push_back({stem, "", "", seed, stem + "-s" + std::to_string(seed)});
+      continue;
+    }
+    // without scenarios named, each track runs its own event only
+    for (const PlannedTrack& t : tracks) {
+      const bool match = o.scenarios.empty() ? s.event == t.event : events_match(s.event, t.event);
+      if (!match) {
+        ++plan.event_mismatches;
+        continue;
+      }
+      for (unsigned long long seed : seeds)
+        plan.runs.push_back({stem, t.label, t.file, seed,
+                             fs::path(stem) / (flat(t.label) + "-s" + std::to_string(seed))});
+    }
+  }
+  if (plan.runs.empty())
+    throw InputError("regress", 0,
+                     "nothing to run: no scenario's event matches a track's (" +
+                         std::to_string(plan.event_mismatches) + " pairs left out)");
+  return plan;
+}
+
+RunRow make_row(const RegressionRun& run, const json& m, int exit_code,
+                const std::string& log_tail) {
+  RunRow r;
+  r.id = run.id();
+  r.scenario = run.scenario;
+  r.track = run.track_label;
+  r.seed = run.seed;
+  r.dir = run.dir.generic_string();
+  r.exit_code = exit_code;
+  if (!m.is_object()) {
+    // no metrics.json: the run stopped before its verdict
+    r.reasons.push_back(
+        "no metrics.json: exit " + std::to_string(exit_code) +
+        (exit_code > 128 ? " (signal " + std::to_string(exit_code - 128) + ")" : "") +
+        (log_tail.empty() ? "" : ": " + log_tail));
+    return r;
+  }
+  if (r.track.empty()) r.track = m.value("track", std::string());
+  r.event = m.value("event", std::string());
+  r.passed = m.value("passed", false) && exit_code == 0;
+  for (const json& f : m.value("pass_failures", json::array()))
+    r.reasons.push_back(f.is_string() ? f.get<std::string>() : f.dump());
+  if (m.value("passed", false) && exit_code != 0)
+    r.reasons.push_back("exit " + std::to_string(exit_code) +
+                        (log_tail.empty() ? "" : ": " + log_tail));
+  r.dnf_reason = m.value("dnf_reason", std::string());
+  const json penalties = m.value("penalties", json::object());
+  r.cones_hit = penalties.value("cones_hit", 0);
+  r.off_course = penalties.value("off_course", 0);
+  for (const json& e : m.value("events", json::array())) {
+    if (!e.is_object()) continue;
+    RunEvent ev;
+    ev.kind = e.value("kind", std::string());
+    ev.t_s = e.value("t_s", 0.0);
+    ev.lap = e.value("lap", 0);
+    ev.x_m = e.value("x_m", 0.0);
+    ev.y_m = e.value("y_m", 0.0);
+    ev.penalty_s = e.value("penalty_s", 0.0);
+    ev.reason = e.value("reason", std::string());
+    r.events.push_back(ev);
+  }
+  r.laps = m.value("laps", 0);
+  for (const json& l : m.value("lap_times_s", json::array()))
+    if (l.is_number() && !(l.get<double>() >= r.best_lap_s)) r.best_lap_s = l.get<double>();
+  // a DNF has no final time (metrics.json gives 0)
+  if (m.value("completed", false)) r.final_time_s = number_or_nan(m, "final_time_s");
+  r.lap_time_bound_s = number_or_nan(m, "lap_time_bound_s");
+  if (std::isfinite(r.best_lap_s) && r.lap_time_bound_s > 0.0)
+    r.bound_ratio = r.best_lap_s / r.lap_time_bound_s;
+  // the SLAM backend's figures (one backend per run)
+  if (m.contains("slam") && m["slam"].is_object() && !m["slam"].empty()) {
+    const json& f = m["slam"].begin().value();
+    r.map_rmse_m = number_or_nan(f, "map_rmse_m");
+    r.ate_rmse_m = number_or_nan(f, "ate_rmse_m");
+    r.da_correct_fraction = number_or_nan(f, "da_correct_fraction");
+  }
+  // raw-data perception: within 15 m, where the driver looks
+  const json p = m.value("perception", json::object());
+  r.perception_recall = number_or_nan(p, p.contains("recall_15m") ? "recall_15m" : "recall");
+  r.perception_precision =
+      number_or_nan(p, p.contains("precision_15m") ? "precision_15m" : "precision");
+  r.wall_time_s = number_or_nan(m, "wall_time_s");
+  r.real_time_factor = number_or_nan(m, "real_time_factor");
+  return r;
+}
+
+json row_to_json(const RunRow& r) {
+  json events = json::array();
+  for (const RunEvent& e : r.events)
+    events.push_back({{"kind", e.kind},
+                      {"t_s", e.t_s},
+                      {"lap", e.lap},
+                      {"x_m", e.x_m},
+                      {"y_m", e.y_m},
+                      {"penalty_s", e.penalty_s},
+                      {"reason", e.reason}});
+  return {{"id", r.id},
+          {"scenario", r.scenario},
+          {"track", r.track},
+          {"seed", r.seed},
+          {"dir", r.dir},
+          {"verdict", r.passed ? "pass" : "fail"},
+          {"reasons", r.reasons},
+          {"dnf_reason", r.dnf_reason},
+          {"exit_code", r.exit_code},
+          {"event", r.event},
+          {"cones_hit", r.cones_hit},
+          {"off_course", r.off_course},
+          {"events", events},
+          {"laps", r.laps},
+          {"best_lap_s", finite_or_null(r.best_lap_s)},
+          {"final_time_s", finite_or_null(r.final_time_s)},
+          {"lap_time_bound_s", finite_or_null(r.lap_time_bound_s)},
+          {"lap_time_bound_ratio", finite_or_null(r.bound_ratio)},
+          {"slam_map_rmse_m", finite_or_null(r.map_rmse_m)},
+          {"slam_ate_rmse_m", finite_or_null(r.ate_rmse_m)},
+          {"slam_da_correct_fraction", finite_or_null(r.da_correct_fraction)},
+          {"perception_recall", finite_or_null(r.perception_recall)},
+          {"perception_precision", finite_or_null(r.perception_precision)},
+          {"wall_time_s", finite_or_null(r.wall_time_s)},
+          {"real_time_factor", finite_or_null(r.real_time_factor)},
+          {"regressions", r.regressions}};
+}
+
+RunRow row_from_json(const json& j) {
+  auto num = [&](const char* key) { return number_or_nan(j, key); };
+  RunRow r;
+  r.id = j.value("id", std::string());
+  r.scenario = j.value("scenario", std::string());
+  r.track = j.value("track", std::string());
+  r.seed = j.value("seed", 1ULL);
+  r.dir = j.value("dir", std::string());
+  r.passed = j.value("verdict", std::string()) == "pass";
+  r.reasons = j.value("reasons", std::vector<std::string>());
+  r.dnf_reason = j.value("dnf_reason", std::string());
+  r.exit_code = j.value("exit_code", 0);
+  r.event = j.value("event", std::string());
+  r.cones_hit = j.value("cones_hit", 0);
+  r.off_course = j.value("off_course", 0);
+  for (const json& e : j.value("events", json::array()))
+    r.events.push_back({e.value("kind", std::string()), e.value("t_s", 0.0), e.value("lap", 0),
+                        e.value("x_m", 0.0), e.value("y_m", 0.0), e.value("penalty_s", 0.0),
+                        e.value("reason", std::string())});
+  r.laps = j.value("laps", 0);
+  r.best_lap_s = num("best_lap_s");
+  r.final_time_s = num("final_time_s");
+  r.lap_time_bound_s = num("lap_time_bound_s");
+  r.bound_ratio = num("lap_time_bound_ratio");
+  r.map_rmse_m = num("slam_map_rmse_m");
+  r.ate_rmse_m = num("slam_ate_rmse_m");
+  r.da_correct_fraction = num("slam_da_correct_fraction");
+  r.perception_recall = num("perception_recall");
+  r.perception_precision = num("perception_precision");
+  r.wall_time_s = num("wall_time_s");
+  r.real_time_factor = num("real_time_factor");
+  r.regressions = j.value("regressions", std::vector<std::string>());
+  return r;
+}
+
+void sort_failures_first(std::vector<RunRow>& rows) {
+  std::stable_sort(rows.begin(), rows.end(), [](const RunRow& a, const RunRow& b) {
+    const int ra = a.passed ? (a.regressions.empty() ? 2 : 1) : 0;
+    const int rb = b.passed ? (b.regressions.empty() ? 2 : 1) : 0;
+    return ra < rb;
+  });
+}
+
+BaselineComparison compare_to_baseline(std::vector<RunRow>& rows,
+                                       const std::vector<RunRow>& baseline,
+                                       const BaselineNoise& noise) {
+  BaselineComparison c;
+  std::map<std::string, const RunRow*> before;
+  for (const RunRow& b : baseline) before[b.id] = &b;
+  std::set<std::string> now;
+  for (RunRow& r : rows) {
+    now.insert(r.id);
+    const auto it = before.find(r.id);
+    if (it == before.end()) {
+      c.added.push_back(r.id);
+      continue;
+    }
+    const RunRow& b = *it->second;
+    std::vector<std::string>& found = r.regressions;
+    found.clear();
+    if (b.passed && !r.passed)
+      found.push_back("passed in the baseline, fails now" +
+                      (r.reasons.empty() ? "" : ": " + join(r.reasons, "; ")));
+    // a figure worse than before by more than the noise; both must be known
+    auto worse = [&](const char* what, double was, double is, double allowed, const char* unit) {
+      if (!std::isfinite(was) || !std::isfinite(is) || is - was <= allowed) return;
+      found.push_back(std::string(what) + " " + human_number(was) + " -> " + human_number(is) +
+                      " " + unit + " (noise " + human_number(allowed) + " " + unit + ")");
+    };
+    auto time_noise = [&](double was) {
+      return std::max(noise.time_relative * was, noise.time_absolute_s);
+    };
+    auto rmse_noise = [&](double was) {
+      return std::max(noise.rmse_relative * was, noise.rmse_absolute_m);
+    };
+    worse("best lap", b.best_lap_s, r.best_lap_s, time_noise(b.best_lap_s), "s");
+    worse("final time", b.final_time_s, r.final_time_s, time_noise(b.final_time_s), "s");
+    worse("cones hit", b.cones_hit, r.cones_hit, 0.0, "");
+    worse("off-course", b.off_course, r.off_course, 0.0, "");
+    worse("SLAM map RMSE", b.map_rmse_m, r.map_rmse_m, rmse_noise(b.map_rmse_m), "m");
+    worse("SLAM trajectory RMSE", b.ate_rmse_m, r.ate_rmse_m, rmse_noise(b.ate_rmse_m), "m");
+    // fractions: lower is worse
+    worse("SLAM associations wrong (1 - correct fraction)", 1.0 - b.da_correct_fraction,
+          1.0 - r.da_correct_fraction, noise.association_fraction_absolute, "");
+    worse("perception misses (1 - recall)", 1.0 - b.perception_recall, 1.0 - r.perception_recall,
+          noise.fraction_absolute, "");
+    worse("perception false detections (1 - precision)", 1.0 - b.perception_precision,
+          1.0 - r.perception_precision, noise.fraction_absolute, "");
+    for (const std::string& f : found) c.regressions.push_back(r.id + ": " + f);
+  }
+  for (const RunRow& b : baseline)
+    if (!now.count(b.id)) c.missing.push_back(b.id);
+
+  // per scenario, the median SLAM figures over the runs both summaries have
+  std::map<std::string, std::vector<std::pair<const RunRow*, const RunRow*>>> pairs;
+  for (const RunRow& r : rows)
+    if (const auto it = before.find(r.id); it != before.end())
+      pairs[r.scenario].push_back({it->second, &r});
+  for (const auto& [scenario, list] : pairs) {
+    auto median_worse = [&](const char* what, double RunRow::*figure) {
+      std::vector<double> was, is;
+      for (const auto& [b, r] : list)
+        if (std::isfinite(b->*figure) && std::isfinite(r->*figure)) {
+          was.push_back(b->*figure);
+          is.push_back(r->*figure);
+        }
+      if (static_cast<int>(was.size()) < noise.median_min_runs) return;
+      const double m0 = median(was), m1 = median(is);
+      const double allowed =
+          std::max(noise.median_rmse_relative * m0, noise.median_rmse_absolute_m);
+      if (m1 - m0 <= allowed) return;
+      const std::string text = scenario + ": median " + what + " over " +
+                               std::to_string(was.size()) + " runs " + human_number(m0) + " -> " +
+                               human_number(m1) + " m (noise " + human_number(allowed) + " m)";
+      c.median_regressions.push_back(text);
+      c.regressions.push_back(text);
+    };
+    median_worse("SLAM map RMSE", &RunRow::map_rmse_m);
+    median_worse("SLAM trajectory RMSE", &RunRow::ate_rmse_m);
+  }
+  return c;
+}
+
+std::string describe_noise(const BaselineNoise& n) {
+  char buf[1200];
+  std::snprintf(buf, sizeof(buf),
+                "A run that passed in the baseline and fails now is a regression. So is a figure "
+                "worse than the baseline's by more than its noise: best lap and final time by "
+                "more than max(%.0f %%, %.1f s); SLAM map and trajectory RMSE by more than "
+                "max(%.0f %%, %.2f m) in a run, or their median over a scenario's runs (%d or "
+                "more) by more than max(%.0f %%, %.3f m); the fraction of correct SLAM "
+                "associations lower by more "
+                "than %.3f; perception recall or precision lower by more than %.2f; any more cones "
+                "hit or off-course "
+                "(a penalty is never noise). Runs are deterministic per seed on one build; the "
+                "noise is what a different machine, compiler or library build changes.",
+                n.time_relative * 100.0, n.time_absolute_s, n.rmse_relative * 100.0,
+                n.rmse_absolute_m, n.median_min_runs, n.median_rmse_relative * 100.0,
+                n.median_rmse_absolute_m, n.association_fraction_absolute, n.fraction_absolute);
+  return buf;
+}
+
+json summary_json(const std::vector<RunRow>& rows, const RegressionPlan& plan,
+                  const RegressOptions& o, double wall_s, const BaselineComparison* comparison) {
+  int passed = 0, regressed = 0;
+  json runs = json::array();
+  for (const RunRow& r : rows) {
+    passed += r.passed;
+    regressed += !r.regressions.empty();
+    runs.push_back(row_to_json(r));
+  }
+  json skipped = json::array();
+  for (const SkippedTrack& s : plan.skipped)
+    skipped.push_back({{"track", s.track}, {"reason", s.reason}});
+  json baseline = nullptr;
+  if (comparison)
+    baseline = {{"file", o.baseline ? o.baseline->string() : ""},
+                {"regressions", comparison->regressions},
+                {"missing", comparison->missing},
+                {"added", comparison->added}};
+  return {{"tool", "conesim regress"},
+          {"version", CONESIM_VERSION},
+          {"commit", source_commit()},
+          {"command", o.command_line},
+          {"finished_utc", utc_now()},
+          {"jobs", o.jobs},
+          {"wall_time_s", std::round(wall_s * 10.0) / 10.0},
+          {"totals",
+           {{"runs", rows.size()},
+            {"passed", passed},
+            {"failed", static_cast<int>(rows.size()) - passed},
+            {"regressed", regressed},
+            {"skipped_tracks", plan.skipped.size()},
+            {"event_mismatches_left_out", plan.event_mismatches}}},
+          {"noise", describe_noise()},
+          {"baseline", baseline},
+          {"skipped_tracks", skipped},
+          {"runs", runs}};
+}
+
+std::string junit_xml(const std::vector<RunRow>& rows, double wall_s,
+                      const BaselineComparison* comparison) {
+  int failures = 0;
+  for (const RunRow& r : rows) failures += !r.passed || !r.regressions.empty();
+  const bool medians_regressed = comparison && !comparison->median_regressions.empty();
+  failures += medians_regressed;
+  const size_t tests = rows.size() + (comparison ? 1 : 0);
+  std::ostringstream x;
+  x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+    << "<testsuites name=\"conesim regress\" tests=\"" << tests << "\" failures=\"" << failures
+    << "\" errors=\"0\" time=\"" << fixed(wall_s, 3) << "\">\n"
+    << "  <testsuite name=\"conesim regress\" tests=\"" << tests << "\" failures=\"" << failures
+    << "\" errors=\"0\" skipped=\"0\" time=\"" << fixed(wall_s, 3) << "\" timestamp=\""
+    << utc_now().substr(0, 19) << "\">\n";
+  for (const RunRow& r : rows) {
+    const std::string track = r.track.empty() ? "scenario track" : r.track;
+    x << "    <testcase classname=\"" << xml_escape(r.scenario) << "\" name=\""
+      << xml_escape(track + " seed " + std::to_string(r.seed)) << "\" time=\""
+      << fixed(std::isfinite(r.wall_time_s) ? r.wall_time_s : 0.0, 3) << "\"";
+    if (r.passed && r.regressions.empty()) {
+      x << "/>\n";
+      continue;
+    }
+    std::vector<std::string> why = r.passed ? std::vector<std::string>{} : r.reasons;
+    for (const std::string& g : r.regressions) why.push_back("regression: " + g);
+    if (why.empty()) why.push_back("failed");
+    x << ">\n      <failure type=\"" << (r.passed ? "regression" : "fail") << "\" message=\""
+      << xml_escape(join(why, "; ")) << "\">" << xml_escape(join(why, "\n"));
+    const std::string where = events_text(r);
+    if (!where.empty()) x << xml_escape("\npenalties: " + where);
+    if (!r.dnf_reason.empty()) x << xml_escape("\nDNF: " + r.dnf_reason);
+    x << xml_escape("\nrun folder: " + r.dir) << "</failure>\n    </testcase>\n";
+  }
+  if (comparison) {
+    x << "    <testcase classname=\"baseline\" name=\"medians\" time=\"0\"";
+    if (medians_regressed) {
+      const std::string why = join(comparison->median_regressions, "; ");
+      x << ">\n      <failure type=\"regression\" message=\"" << xml_escape(why) << "\">"
+        << xml_escape(join(comparison->median_regressions, "\n"))
+        << "</failure>\n    </testcase>\n";
+    } else {
+      x << "/>\n";
+    }
+  }
+  x << "  </testsuite>\n</testsuites>\n";
+  return x.str();
+}
+
+std::string summary_html(const std::vector<RunRow>& rows, const RegressionPlan& plan,
+                         const RegressOptions& o, double wall_s,
+                         const BaselineComparison* comparison) {
+  int passed = 0;
+  for (const RunRow& r : rows) passed += r.passed;
+  const bool all_good =
+      passed == static_cast<int>(rows.size()) && (!comparison || comparison->regressions.empty());
+  std::ostringstream h;
+  h << "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>conesim regress</title>\n"
+    << "<style>" << report_css() << "</style></head><body>\n<h1>conesim regress</h1>\n"
+    << "<div class=\"banner " << (all_good ? "pass" : "fail") << "\">" << passed << " of "
+    << rows.size() << " passed"
+    << (comparison ? ", " + std::to_string(comparison->regressions.size()) + " regressions" : "")
+    << "</div>\n<p><code>" << html_escape(o.command_line) << "</code><br>" << fixed(wall_s, 0)
+    << " s wall time with " << o.jobs << " jobs, conesim " << CONESIM_VERSION << "</p>\n";
+  if (!plan.skipped.empty()) {
+    h << "<h2>Tracks skipped</h2>\n<ul>\n";
+    for (const SkippedTrack& s : plan.skipped)
+      h << "<li>" << html_escape(s.track) << ": " << html_escape(s.reason) << "</li>\n";
+    h << "</ul>\n";
+  }
+  if (comparison) {
+    h << "<h2>Against the baseline " << html_escape(o.baseline ? o.baseline->string() : "")
+      << "</h2>\n<p>" << html_escape(describe_noise()) << "</p>\n";
+    auto list = [&](const char* title, const std::vector<std::string>& items) {
+      if (items.empty()) return;
+      h << "<h3>" << title << " (" << items.size() << ")</h3>\n<ul>\n";
+      for (const std::string& i : items) h << "<li>" << html_escape(i) << "</li>\n";
+      h << "</ul>\n";
+    };
+    list("Regressions", comparison->regressions);
+    list("Runs in the baseline not run now", comparison->missing);
+    list("Runs not in the baseline", comparison->added);
+    if (comparison->regressions.empty()) h << "<p>No regression.</p>\n";
+  }
+  h << "<h2>Runs</h2>\n<table>\n<tr><th>verdict</th><th>scenario</th><th>track</th><th>seed</th>"
+       "<th>reason</th><th>penalties (where)</th><th>laps</th><th>best lap [s]</th>"
+       "<th>final [s]</th><th>best lap / bound</th><th>map RMSE [m]</th><th>ATE [m]</th>"
+       "<th>DA correct</th><th>recall</th><th>precision</th><th>wall [s]</th><th>RTF</th>"
+       "<th>report</th></tr>\n";
+  for (const RunRow& r : rows) {
+    const bool regressed = !r.regressions.empty();
+    std::vector<std::string> why = r.passed ? std::vector<std::string>{} : r.reasons;
+    for (const std::string& g : r.regressions) why.push_back("regression: " + g);
+    std::string penalties =
+        std::to_string(r.cones_hit) + " hit, " + std::to_string(r.off_course) + " off";
+    const std::string where = events_text(r);
+    if (!where.empty()) penalties += ": " + where;
+    const fs::path report = fs::path(r.dir) / "report.html";
+    h << "<tr"
+      << (!r.passed   ? " class=\"failed\""
+          : regressed ? " class=\"regressed\""
+                      : "")
+      << "><td>" << (r.passed ? (regressed ? "pass (regressed)" : "pass") : "<b>FAIL</b>")
+      << "</td><td>" << html_escape(r.scenario) << "</td><td>"
+      << html_escape(r.track.empty() ? "scenario track" : r.track) << "</td><td>" << r.seed
+      << "</td><td>" << html_escape(join(why, "; ")) << "</td><td>" << html_escape(penalties)
+      << "</td><td>" << r.laps << "</td><td>" << fixed(r.best_lap_s, 2) << "</td><td>"
+      << fixed(r.final_time_s, 2) << "</td><td>" << fixed(r.bound_ratio, 3) << "</td><td>"
+      << fixed(r.map_rmse_m, 3) << "</td><td>" << fixed(r.ate_rmse_m, 3) << "</td><td>"
+      << fixed(r.da_correct_fraction, 3) << "</td><td>" << fixed(r.perception_recall, 3)
+      << "</td><td>" << fixed(r.perception_precision, 3) << "</td><td>" << fixed(r.wall_time_s, 1)
+      << "</td><td>" << fixed(r.real_time_factor, 0) << "</td><td>";
+    if (fs::exists(o.out_dir / report))
+      h << "<a href=\"" << html_escape(report.generic_string()) << "\">report</a>";
+    h << "</td></tr>\n";
+  }
+  h << "</table>\n</body></html>\n";
+  return h.str();
+}
+
+void print_table(const std::vector<RunRow>& rows, std::ostream& out) {
+  // widths from the content, so long track names line up
+  std::vector<std::vector<std::string>> cells = {{"verdict", "scenario", "track", "seed", "laps",
+                                                  "best_lap", "final_s", "hit", "off", "map_rmse",
+                                                  "rtf"}};
+  for (const RunRow& r : rows)
+    cells.push_back({r.passed ? (r.regressions.empty() ? "ok" : "REGRESSED") : "FAIL", r.scenario,
+                     r.track.empty() ? "-" : r.track, std::to_string(r.seed),
+                     std::to_string(r.laps), fixed(r.best_lap_s, 2), fixed(r.final_time_s, 2),
+                     std::to_string(r.cones_hit), std::to_string(r.off_course),
+                     fixed(r.map_rmse_m, 3), fixed(r.real_time_factor, 0) + "x"});
+  std::vector<size_t> widths(cells[0].size(), 0);
+  for (const auto& c : cells)
+    for (size_t i = 0; i < c.size(); ++i) widths[i] = std::max(widths[i], c[i].size());
+  for (size_t k = 0; k < cells.size(); ++k) {
+    std::string line;
+    for (size_t i = 0; i < cells[k].size(); ++i) {
+      std::string c = cells[k][i];
+      c.resize(std::max(widths[i], c.size()), ' ');
+      line += (i ? "  " : "") + c;
+    }
+    while (!line.empty() && line.back() == ' ') line.pop_back();
+    out << line << "\n";
+    if (k == 0) continue;
+    // why, under the row
+    const RunRow& r = rows[k - 1];
+    if (!r.passed)
+      for (const std::string& why : r.reasons) out << "    " << why << "\n";
+    const std::string where = events_text(r);
+    if (!r.passed && !where.empty()) out << "    penalties: " << where << "\n";
+    for (const std::string& g : r.regressions) out << "    regression: " << g << "\n";
+  }
+}
+
+int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& out,
+                   std::ostream& progress) {
+  using clock = std::chrono::steady_clock;
+  const auto start = clock::now();
+
+  // the baseline is read first: a bad one stops everything before any run
+  std::vector<RunRow> baseline;
+  if (o.baseline) {
+    std::ifstream in(*o.baseline);
+    if (!in) throw InputError(o.baseline->string(), 0, "cannot read the baseline summary");
+    try {
+      const json b = json::parse(in);
+      for (const json& r : b.at("runs")) baseline.push_back(row_from_json(r));
+    } catch (const json::exception& e) {
+      throw InputError(o.baseline->string(), 0,
+                       std::string("not a conesim regress summary.json: ") + e.what());
+    }
+  }
+  fs::create_directories(o.out_dir);
+  const RegressionPlan plan = plan_regression(self, o);
+  for (const SkippedTrack& s : plan.skipped)
+    progress << "skipped track " << s.track << ": " << s.reason << "\n";
+  progress << plan.runs.size() << " runs, " << o.jobs << " at once, into " << o.out_dir.string();
+  if (plan.event_mismatches > 0)
+    progress << " (" << plan.event_mismatches << " scenario-track pairs left out: events differ)";
+  progress << "\n";
+
+  // run them, at most `jobs` at once
+  const std::vector<RegressionRun>& runs = plan.runs;
+  std::map<pid_t, size_t> running;
+  std::vector<int> exit_codes(runs.size(), -1);
+  std::vector<RunRow> rows(runs.size());
+  size_t next = 0, done_count = 0;
+  auto finish = [&](size_t i) {
+    const fs::path dir = o.out_dir / runs[i].dir;
+    json m;
+    std::ifstream in(dir / "metrics.json");
+    if (in) {
+      try {
+        in >> m;
+      } catch (const std::exception&) {
+        m = json();
+      }
+    }
+    const std::string tail = m.is_object() ? "" : last_line(dir / "log.txt");
+    rows[i] = make_row(runs[i], m, exit_codes[i], tail);
+    ++done_count;
+    progress << "[" << done_count << "/" << runs.size() << "] " << runs[i].id() << ": "
+             << (rows[i].passed ? "pass" : "FAIL") << "\n";
+  };
+  while (next < runs.size() || !running.empty()) {
+    while (next < runs.size() && static_cast<int>(running.size()) < std::max(o.jobs, 1)) {
+      const RegressionRun& r = runs[next];
+      const fs::path dir = o.out_dir / r.dir;
+      fs::create_directories(dir);
+      std::vector<std::string> argv = {self.string(),          "run",   r.scenario,  "--seed",
+                                       std::to_string(r.seed), "--out", dir.string()};
+      if (!r.track_file.empty()) argv.insert(argv.end(), {"--track", r.track_file.string()});
+      for (const std::string& s : o.sets) argv.insert(argv.end(), {"--set", s});
+      if (!o.plot) argv.push_back("--no-plot");
+      // a scenario given as a file runs from that file
+      for (const std::string& given : o.scenarios)
+        if (fs::path(given).stem() == r.scenario && fs::is_regular_file(given)) argv[2] = given;
+      const pid_t pid = spawn(argv, dir / "log.txt");
+      if (pid > 0) {
+        running[pid] = next;
+      } else {
+        exit_codes[next] = 127;
+        finish(next);
+      }
+      ++next;
+    }
+    if (running.empty()) continue;
+    int status = 0;
+    const pid_t pid = wait(&status);
+    if (pid < 0) break;
+    const auto it = running.find(pid);
+    if (it == running.end()) continue;
+    exit_codes[it->second] = exit_status(status);
+    finish(it->second);
+    running.erase(it);
+  }
+  const double wall_s = std::chrono::duration<double>(clock::now() - start).count();
+
+  // the verdicts, the baseline, the three summaries and the table
+  std::optional<BaselineComparison> comparison;
+  if (o.baseline) comparison = compare_to_baseline(rows, baseline);
+  sort_failures_first(rows);
+  const BaselineComparison* c = comparison ? &*comparison : nullptr;
+  std::ofstream(o.out_dir / "summary.json")
+      << summary_json(rows, plan, o, wall_s, c).dump(2) << "\n";
+  std::ofstream(o.out_dir / "junit.xml") << junit_xml(rows, wall_s, c);
+  std::ofstream(o.out_dir / "summary.html") << summary_html(rows, plan, o, wall_s, c);
+  print_table(rows, out);
+  int failed = 0;
+  for (const RunRow& r : rows) failed += !r.passed;
+  out << rows.size() - failed << " passed, " << failed << " failed";
+  if (c)
+    out << ", " << c->regressions.size() << " regressions, " << c->missing.size()
+        << " baseline runs missing, " << c->added.size() << " new";
+  out << " (" << fixed(wall_s, 0) << " s)\n";
+  if (c)
+    for (const std::string& m : c->missing) out << "missing: " << m << "\n";
+  return failed == 0 && (!c || c->regressions.empty()) ? 0 : 1;
 }
 
 fs::path make_run_dir(const fs::path& parent, const std::string& name) {
@@ -83,79 +937,6 @@ fs::path make_run_dir(const fs::path& parent, const std::string& name) {
     const fs::path dir = parent / leaf;
     if (fs::create_directory(dir)) return dir;
   }
-}
-
-int run_regression(const fs::path& self, const std::vector<RegressionRun>& runs, int jobs,
-                   const fs::path& out_dir, std::ostream& out) {
-  fs::create_directories(out_dir);
-  std::vector<fs::path> dirs;
-  for (const auto& r : runs)
-    dirs.push_back(out_dir / (fs::path(r.scenario).stem().string() + "-s" + std::to_string(r.seed)));
-
-  // run them, at most `jobs` at once
-  std::map<pid_t, size_t> running;
-  std::vector<int> exit_codes(runs.size(), -1);
-  size_t next = 0;
-  while (next < runs.size() || !running.empty()) {
-    while (next < runs.size() && static_cast<int>(running.size()) < std::max(jobs, 1)) {
-      fs::create_directories(dirs[next]);
-      const pid_t pid = spawn({self.string(), "run", runs[next].scenario, "--seed",
-                               std::to_string(runs[next].seed), "--out", dirs[next].string()},
-                              dirs[next] / "log.txt");
-      if (pid > 0) running[pid] = next;
-      ++next;
-    }
-    int status = 0;
-    const pid_t done = wait(&status);
-    if (done < 0) break;
-    const auto it = running.find(done);
-    if (it == running.end()) continue;
-    exit_codes[it->second] = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    running.erase(it);
-  }
-
-  // the table
-  const std::vector<int> widths = {12, 22, 4, 9, 9, 9, 6, 7, 4};
-  out << format_row({"event", "track", "seed", "completed", "time_s", "cones_hit", "off", "rtf",
-                     "pass"},
-                    widths)
-      << "\n";
-  int failed = 0;
-  for (size_t i = 0; i < runs.size(); ++i) {
-    nlohmann::json m;
-    std::ifstream in(dirs[i] / "metrics.json");
-    bool ok = false;
-    if (in) {
-      try {
-        in >> m;
-        ok = true;
-      } catch (const std::exception&) {
-      }
-    }
-    if (!ok) {
-      out << format_row({runs[i].scenario, "-", std::to_string(runs[i].seed), "crashed", "-", "-",
-                         "-", "-", "FAIL"},
-                        widths)
-          << "   (exit " << exit_codes[i] << ", see " << (dirs[i] / "log.txt").string() << ")\n";
-      ++failed;
-      continue;
-    }
-    const bool passed = m.value("passed", false) && exit_codes[i] == 0;
-    char time_s[32], rtf[32];
-    std::snprintf(time_s, sizeof(time_s), "%.2f", m.value("final_time_s", 0.0));
-    std::snprintf(rtf, sizeof(rtf), "%.0fx", m.value("real_time_factor", 0.0));
-    out << format_row({m.value("event", ""), m.value("track", ""), std::to_string(runs[i].seed),
-                       m.value("completed", false) ? "yes" : "DNF", time_s,
-                       std::to_string(m["penalties"].value("cones_hit", 0)),
-                       std::to_string(m["penalties"].value("off_course", 0)), rtf,
-                       passed ? "ok" : "FAIL"},
-                      widths);
-    if (!m.value("dnf_reason", std::string()).empty()) out << "   " << m.value("dnf_reason", "");
-    out << "\n";
-    if (!passed) ++failed;
-  }
-  out << runs.size() - failed << " passed, " << failed << " failed\n";
-  return failed;
 }
 
 }  // namespace conesim::sim

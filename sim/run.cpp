@@ -8,6 +8,8 @@
 
 #include "control/drivability.hpp"
 #include "control/driver.hpp"
+#include "core/error.hpp"
+#include "sim/report.hpp"
 #include "sim/slam_runner.hpp"
 #include "sim/track_commands.hpp"
 #include "sim/vehicle_sim.hpp"
@@ -48,10 +50,17 @@ double hard_stop_s(const Scenario& s) {
   const RefereeParams& r = s.referee;
   double limit = r.timeout_trackdrive_total_s;
   switch (s.event) {
-    case core::EventType::kAcceleration: limit = r.timeout_acceleration_s; break;
-    case core::EventType::kSkidpad: limit = r.timeout_skidpad_s; break;
-    case core::EventType::kAutocross: limit = r.timeout_autocross_s; break;
-    case core::EventType::kTrackdrive: break;
+    case core::EventType::kAcceleration:
+      limit = r.timeout_acceleration_s;
+      break;
+    case core::EventType::kSkidpad:
+      limit = r.timeout_skidpad_s;
+      break;
+    case core::EventType::kAutocross:
+      limit = r.timeout_autocross_s;
+      break;
+    case core::EventType::kTrackdrive:
+      break;
   }
   return limit + r.stuck_time_s + kHardStopMarginS;
 }
@@ -70,25 +79,36 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
     failures.push_back(std::to_string(r.off_course) + " off-course, at most " +
                        std::to_string(pass.max_off_course) + " allowed");
   if (pass.max_final_time_s > 0.0 && r.final_time_s > pass.max_final_time_s)
-    failures.push_back("final time " + std::to_string(r.final_time_s) + " s over " +
-                       std::to_string(pass.max_final_time_s) + " s");
-  // the SLAM estimate's quality
+    failures.push_back("final time " + human_number(r.final_time_s) + " s over " +
+                       human_number(pass.max_final_time_s) + " s");
+  // the SLAM estimate's quality; a figure with nothing measured (null: no landmark matched a
+  // true cone, no association, no update) fails the criterion on it
   if (slam_metrics.is_null()) return failures;
-  auto figure = [&](const char* key) { return slam_metrics.at(key).get<double>(); };
-  if (pass.max_map_rmse_m && figure("map_rmse_m") > *pass.max_map_rmse_m)
-    failures.push_back("SLAM map RMSE " + std::to_string(figure("map_rmse_m")) + " m over " +
-                       std::to_string(*pass.max_map_rmse_m) + " m");
-  if (pass.max_ate_rmse_m && figure("ate_rmse_m") > *pass.max_ate_rmse_m)
-    failures.push_back("SLAM trajectory RMSE " + std::to_string(figure("ate_rmse_m")) +
-                       " m over " + std::to_string(*pass.max_ate_rmse_m) + " m");
-  if (pass.min_da_correct_fraction &&
-      figure("da_correct_fraction") < *pass.min_da_correct_fraction)
-    failures.push_back("SLAM associations " + std::to_string(figure("da_correct_fraction")) +
-                       " correct, at least " + std::to_string(*pass.min_da_correct_fraction) +
-                       " required");
+  auto limit = [&](const char* key, const char* what, bool at_most, double bound,
+                   const char* why_null) {
+    const nlohmann::json& v = slam_metrics.at(key);
+    const std::string rule =
+        std::string(at_most ? "at most " : "at least ") + human_number(bound) + " required";
+    if (v.is_null()) {
+      failures.push_back(std::string(what) + " not measured (" + key + " is null: " + why_null +
+                         "), " + rule);
+      return;
+    }
+    const double x = v.get<double>();
+    if (at_most ? x > bound : x < bound)
+      failures.push_back(std::string(what) + " " + human_number(x) + ", " + rule);
+  };
+  if (pass.max_map_rmse_m)
+    limit("map_rmse_m", "SLAM map RMSE [m]", true, *pass.max_map_rmse_m,
+          "no map landmark matched a true cone");
+  if (pass.max_ate_rmse_m)
+    limit("ate_rmse_m", "SLAM trajectory RMSE [m]", true, *pass.max_ate_rmse_m, "no SLAM update");
+  if (pass.min_da_correct_fraction)
+    limit("da_correct_fraction", "SLAM correct association fraction", false,
+          *pass.min_da_correct_fraction, "no observation was associated with a landmark");
   if (pass.max_false_loop_closures &&
-      figure("false_loop_closures") > *pass.max_false_loop_closures)
-    failures.push_back(std::to_string(static_cast<int>(figure("false_loop_closures"))) +
+      slam_metrics.at("false_loop_closures").get<int>() > *pass.max_false_loop_closures)
+    failures.push_back(std::to_string(slam_metrics.at("false_loop_closures").get<int>()) +
                        " false loop closures, at most " +
                        std::to_string(*pass.max_false_loop_closures) + " allowed");
   return failures;
@@ -108,6 +128,36 @@ control::VehicleGeometry driver_vehicle(const vehicle_models::VehicleParams& vp)
   return g;
 }
 
+// the referee's events for metrics.json: kind, time, lap, the car's pose, reason, penalty, and
+// the cone or the wheels
+nlohmann::json events_json(const std::vector<RefereeEvent>& events) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const RefereeEvent& e : events) {
+    nlohmann::json j = {{"kind", to_string(e.kind)},
+                        {"t_s", round_to(e.t_s, 1e-3)},
+                        {"lap", e.lap},
+                        {"x_m", round_to(e.pose.x, 1e-3)},
+                        {"y_m", round_to(e.pose.y, 1e-3)},
+                        {"yaw_rad", round_to(e.pose.yaw, 1e-4)},
+                        {"reason", e.reason},
+                        {"penalty_s", e.penalty_s}};
+    if (e.kind == RefereeEvent::Kind::kConeHit) {
+      j["cone_id"] = e.cone_id;
+      j["cone_class"] = std::string(core::to_string(e.cone_class));
+      j["cone_x_m"] = round_to(e.cone_position.x(), 1e-3);
+      j["cone_y_m"] = round_to(e.cone_position.y(), 1e-3);
+    } else if (e.kind == RefereeEvent::Kind::kOffCourse) {
+      nlohmann::json wheels = nlohmann::json::array();
+      for (const core::Vec2& w : e.wheels)
+        wheels.push_back({round_to(w.x(), 1e-3), round_to(w.y(), 1e-3)});
+      j["wheels_m"] = wheels;
+      j["duration_s"] = round_to(e.duration_s, 1e-3);
+    }
+    out.push_back(std::move(j));
+  }
+  return out;
+}
+
 }  // namespace
 
 std::string drivability_problem(const Scenario& s, const tracks::Track& track) {
@@ -125,8 +175,22 @@ std::string drivability_problem(const Scenario& s, const tracks::Track& track) {
 }
 
 tracks::Track scenario_track(const Scenario& s) {
-  if (s.track.file) return tracks::read_track(*s.track.file);
-  return make_event_track(s.event, s.track.generate_seed.value_or(s.seed));
+  if (!s.track.file) return make_event_track(s.event, s.track.generate_seed.value_or(s.seed));
+  tracks::Track track = tracks::read_track(*s.track.file);
+
+  // laps need a circuit: an open layout (a point-to-point course) is driven once, as autocross
+  if (s.event == core::EventType::kTrackdrive && !track.closed && !track.left_lane.empty() &&
+      !track.right_lane.empty()) {
+    char ends[160];
+    const core::Vec2 l = track.cone(track.left_lane.back()).position;
+    const core::Vec2 r = track.cone(track.right_lane.back()).position;
+    std::snprintf(ends, sizeof ends, "(%.1f, %.1f) and (%.1f, %.1f)", l.x(), l.y(), r.x(), r.y());
+    throw core::InputError(s.track.file->string(), "event",
+                           std::string("trackdrive needs a closed circuit, and this layout's "
+                                       "lanes do not close (they end at ") +
+                               ends + "); run it as autocross");
+  }
+  return track;
 }
 
 core::ConeObservations perceive_ground_truth(const tracks::Track& track, const core::Pose2& pose,
@@ -169,7 +233,8 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   std::vector<core::MapCone> prior_map;
   if (s.event == core::EventType::kSkidpad) {
     // skidpad is driven from its known layout
-    for (const tracks::Cone& c : track.cones) prior_map.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
+    for (const tracks::Cone& c : track.cones)
+      prior_map.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
   }
   SensorRig rig(s, track, car, options.dump, options.out_dir);
   // every perception but ground truth delivers frames with noise and latency
@@ -301,6 +366,13 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   if (!dnf_override.empty() && result.referee.dnf_reason.empty()) {
     result.referee.completed = false;
     result.referee.dnf_reason = dnf_override;
+    RefereeEvent e;
+    e.kind = RefereeEvent::Kind::kDnf;
+    e.t_s = core::to_seconds(t);
+    e.lap = result.referee.laps + 1;
+    e.pose = car.truth().pose;
+    e.reason = dnf_override;
+    result.referee.events.push_back(e);
   }
   // the driver's own word on why it could not go on
   if (!result.referee.completed && !driver.status().problem.empty())
@@ -332,6 +404,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
         {"cones_hit_ids", r.cones_hit},
         {"off_course", r.off_course},
         {"penalty_time_s", round_to(r.final_time_s - r.raw_time_s, 1e-3)}}},
+      {"events", events_json(r.events)},
       {"raw_time_s", round_to(r.raw_time_s, 1e-3)},
       {"final_time_s", round_to(r.final_time_s, 1e-3)},
       {"sim_time_s", round_to(result.sim_time_s, 1e-3)},
@@ -341,8 +414,8 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       {"pass_failures", result.failures},
       {"slam", slam ? nlohmann::json{{slam->name(), slam_metrics}} : nlohmann::json::object()},
       // the contract's perception figures (raw-data perception) and always the mode
-      {"perception", rig.perception() ? rig.perception()->metrics()
-                                      : nlohmann::json{{"mode", s.perception}}},
+      {"perception",
+       rig.perception() ? rig.perception()->metrics() : nlohmann::json{{"mode", s.perception}}},
       {"sensors",
        {{"lidar_scans", rig.stats().lidar_scans},
         {"lidar_points", rig.stats().lidar_points},
@@ -356,22 +429,57 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   };
   result.metrics = m;
 
-  // the other outputs first, metrics.json last: a run without it did not finish
+  // the results, metrics.json last of them: a run without it did not finish
   write_file_atomically(options.out_dir / "trajectory.csv", trajectory);
   tracks::write_eufs_csv(track, options.out_dir / "track.csv");
+  write_file_atomically(options.out_dir / "metrics.json", m.dump(2) + "\n");
+
+  // the pictures after the results: one that fails (no gnuplot) is a warning, the result stands
+  auto picture = [&result](const std::string& what, const std::function<void()>& draw) {
+    try {
+      draw();
+    } catch (const std::exception& e) {
+      result.warnings.push_back(what + " not written: " + e.what());
+    }
+  };
   if (options.plot) {
-    PlotOverlay overlay{driven, r.cones_hit, ""};
+    PlotOverlay overlay{driven, r.cones_hit, "", {}};
     char summary[200];
     std::snprintf(summary, sizeof(summary), "%s, %d laps, %.2f s, %zu cones hit, %d off-course",
                   r.completed ? "completed" : ("DNF: " + r.dnf_reason).c_str(), r.laps,
                   r.final_time_s, r.cones_hit.size(), r.off_course);
     overlay.subtitle = summary;
-    plot_track(track, s.event, options.out_dir / "run.png", &overlay);
+    // every referee event where it happened: the cone, or the middle of the car
+    int off_course_count = 0;
+    for (const RefereeEvent& e : r.events) {
+      using Kind = PlotOverlay::Mark::Kind;
+      const core::Vec2 car_centre =
+          e.pose.transform({0.5 * vp.front_overhang_from_rear_axle_m -
+                                0.5 * (vp.length_m - vp.front_overhang_from_rear_axle_m),
+                            0.0});
+      const std::string lap = ", lap " + std::to_string(e.lap);
+      switch (e.kind) {
+        case RefereeEvent::Kind::kConeHit:
+          overlay.marks.push_back(
+              {Kind::kConeHit, e.cone_position, "cone " + std::to_string(e.cone_id) + lap});
+          break;
+        case RefereeEvent::Kind::kOffCourse:
+          overlay.marks.push_back({Kind::kOffCourse, car_centre,
+                                   "off-course " + std::to_string(++off_course_count) + lap});
+          break;
+        case RefereeEvent::Kind::kDnf:
+          overlay.marks.push_back({Kind::kDnf, car_centre, "DNF" + lap});
+          break;
+      }
+    }
+    picture("run.png", [&] { plot_track(track, s.event, options.out_dir / "run.png", &overlay); });
+    if (rig.perception())
+      picture("perception_bands.png",
+              [&] { rig.perception()->write_plot(options.out_dir / "perception_bands.png"); });
+    if (slam) picture("the SLAM figures", [&] { slam->write_report(options.out_dir); });
   }
-  if (rig.perception() && options.plot)
-    rig.perception()->write_plot(options.out_dir / "perception_bands.png");
-  if (slam && options.plot) slam->write_report(options.out_dir, m);
-  write_file_atomically(options.out_dir / "metrics.json", m.dump(2) + "\n");
+  // report.html from metrics.json, verdict first: every run has one, pictures or not
+  picture("report.html", [&] { write_run_report(options.out_dir, m); });
   return result;
 }
 

@@ -49,6 +49,8 @@ struct RunResult {
   double wall_time_s = 0.0;
   int driver_laps = 0;
   nlohmann::json metrics;
+  /// What went wrong without touching the result (a picture gnuplot could not draw).
+  std::vector<std::string> warnings;
 };
 
 /// Builds the track a scenario asks for (its file, the FSG layout or a generated circuit).
@@ -66,8 +68,10 @@ core::ConeObservations perceive_ground_truth(const tracks::Track& track, const c
 /// the event is not a circuit.
 std::string drivability_problem(const Scenario& scenario, const tracks::Track& track);
 
-/// Runs the scenario on the track to the referee's verdict and writes metrics.json (last, so a
-/// run that stops early leaves none), trajectory.csv, track.csv and run.png to options.out_dir.
+/// Runs the scenario on the track to the referee's verdict and writes trajectory.csv, track.csv
+/// and metrics.json (last of the results, so a run that stops early leaves none; an earlier one
+/// in the folder is removed first) to options.out_dir, then the pictures (run.png, and the
+/// perception and SLAM reports): a picture that fails is a warning in the result.
 RunResult run_scenario(const Scenario& scenario, const tracks::Track& track,
                        const RunOptions& options);
 

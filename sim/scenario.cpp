@@ -1,14 +1,21 @@
 #include "sim/scenario.hpp"
 
+#include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/yaml.h>
 
+#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <limits>
+#include <map>
 #include <sstream>
+#include <string_view>
+#include <type_traits>
 
 #include "core/error.hpp"
 #include "sensors/lidar_config.hpp"
+#include "vehicle_models/mjcf_builder.hpp"
 
 namespace conesim::sim {
 
@@ -17,53 +24,141 @@ using core::InputError;
 
 namespace {
 
+// the longest time or penalty the referee takes, seconds (about 28 hours of sim time)
+constexpr double kMaxRefereeSeconds = 100000.0;
+
 // a key of a section and how to store its value
 struct Field {
   std::string key;
   std::function<void(const YAML::Node&)> read;
 };
 
-// context for error messages: the file and the dotted path of the section
-struct Where {
+// what one load shares: the file, the keys the command line gave (dotted key -> option), the
+// line of every key read from the file, and the warnings
+struct Context {
   std::string file;
+  std::map<std::string, std::string> origins;
+  std::map<std::string, int> lines;
+  std::vector<std::string> warnings;
+
+  // the option that gave a key (or a section holding it), nullptr when the file gave it
+  const std::string* origin(const std::string& key) const {
+    for (const auto& [k, option] : origins)
+      if (key == k || key.starts_with(k + ".")) return &option;
+    return nullptr;
+  }
+
+  // an error at a key: "--set: key: message" for a value from the command line, otherwise
+  // "file:line: key: message" (the line where the key was read, when known)
+  [[noreturn]] void fail(const std::string& key, const std::string& message, int line = 0) const {
+    if (const std::string* option = origin(key)) throw InputError(*option, 0, key + ": " + message);
+    if (line == 0)
+      if (const auto it = lines.find(key); it != lines.end()) line = it->second;
+    if (line > 0) throw InputError(file, line, key + ": " + message);
+    throw InputError(file, key, message);
+  }
+
+  // a validate() message "key: what was expected" of a section, at that key
+  [[noreturn]] void fail_check(const std::string& section, const std::string& error) const {
+    const size_t colon = error.find(": ");
+    const std::string key = colon == std::string::npos ? "" : error.substr(0, colon);
+    if (key.empty() || key.find(' ') != std::string::npos) fail(section, error);
+    fail(section.empty() ? key : section + "." + key, error.substr(colon + 2));
+  }
+};
+
+// context for error messages: the load and the dotted path of the section
+struct Where {
+  Context* context;
   std::string section;
 
   std::string key(const std::string& k) const { return section.empty() ? k : section + "." + k; }
-  int line(const YAML::Node& n) const { return n.Mark().is_null() ? 0 : n.Mark().line + 1; }
+  static int line(const YAML::Node& n) { return n.Mark().is_null() ? 0 : n.Mark().line + 1; }
+  [[noreturn]] void fail(const YAML::Node& n, const std::string& k,
+                         const std::string& message) const {
+    context->fail(key(k), message, line(n));
+  }
 };
+
+// a value as error messages show it
+std::string describe(const YAML::Node& n) {
+  if (n.IsScalar()) return "'" + n.Scalar() + "'";
+  if (n.IsSequence()) return "a list";
+  if (n.IsMap()) return "a map";
+  return "nothing";
+}
 
 double read_number(const YAML::Node& n, const Where& w, const std::string& key) {
   double v = 0.0;
   try {
+    if (!n.IsScalar()) throw YAML::Exception(n.Mark(), "not a scalar");
     v = n.as<double>();
   } catch (const YAML::Exception&) {
-    throw InputError(w.file, w.line(n), w.key(key) + ": expected a number, got '" +
-                                            (n.IsScalar() ? n.Scalar() : "a list or map") + "'");
+    w.fail(n, key, "expected a number, got " + describe(n));
   }
-  if (!std::isfinite(v))
-    throw InputError(w.file, w.line(n), w.key(key) + ": expected a finite number");
+  if (!std::isfinite(v)) w.fail(n, key, "expected a finite number, got " + describe(n));
   return v;
 }
 
-int64_t read_integer(const YAML::Node& n, const Where& w, const std::string& key) {
-  const double v = read_number(n, w, key);
-  if (v != std::floor(v) || std::abs(v) > 9.0e15)
-    throw InputError(w.file, w.line(n), w.key(key) + ": expected a whole number");
-  return static_cast<int64_t>(v);
+// a whole number within [lo, hi]: the text read exactly as digits (so every 64-bit seed
+// reads), or a number with a fraction or an exponent that is whole and exact in a double (10.0,
+// 1e3); never narrowed or wrapped
+template <typename T>
+T read_integer(const YAML::Node& n, const Where& w, const std::string& key,
+               T lo = std::numeric_limits<T>::min(), T hi = std::numeric_limits<T>::max()) {
+  const std::string range = "expected a whole number from " + std::to_string(lo) + " to " +
+                            std::to_string(hi) + ", got " + describe(n);
+  if (!n.IsScalar()) w.fail(n, key, range);
+
+  // the sign and the magnitude: from the digits, or from a whole double
+  std::string_view text = n.Scalar();
+  bool negative = text.starts_with('-');
+  if (negative || text.starts_with('+')) text.remove_prefix(1);
+  uint64_t magnitude = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), magnitude);
+  if (ec == std::errc::result_out_of_range) w.fail(n, key, range);
+  if (text.empty() || ec != std::errc() || end != text.data() + text.size()) {
+    double v = 0.0;
+    try {
+      v = n.as<double>();
+    } catch (const YAML::Exception&) {
+      w.fail(n, key, range);
+    }
+    if (v != std::floor(v) || !(std::abs(v) <= 9007199254740992.0)) w.fail(n, key, range);  // 2^53
+    negative = v < 0.0;
+    magnitude = static_cast<uint64_t>(std::abs(v));
+  }
+
+  // within [lo, hi], compared in 64 bits
+  if (negative && magnitude != 0) {
+    if constexpr (std::is_unsigned_v<T>) {
+      w.fail(n, key, range);
+    } else {
+      if (lo >= 0) w.fail(n, key, range);
+      const uint64_t most = static_cast<uint64_t>(-(static_cast<int64_t>(lo) + 1)) + 1;
+      if (magnitude > most) w.fail(n, key, range);
+      const int64_t v =
+          magnitude == most ? static_cast<int64_t>(lo) : -static_cast<int64_t>(magnitude);
+      if (v > static_cast<int64_t>(hi)) w.fail(n, key, range);
+      return static_cast<T>(v);
+    }
+  }
+  if (magnitude > static_cast<uint64_t>(hi) || (lo > 0 && magnitude < static_cast<uint64_t>(lo)))
+    w.fail(n, key, range);
+  return static_cast<T>(magnitude);
 }
 
 std::string read_string(const YAML::Node& n, const Where& w, const std::string& key) {
-  if (!n.IsScalar())
-    throw InputError(w.file, w.line(n), w.key(key) + ": expected a text value");
+  if (!n.IsScalar()) w.fail(n, key, "expected a text value, got " + describe(n));
   return n.Scalar();
 }
 
 bool read_bool(const YAML::Node& n, const Where& w, const std::string& key) {
   try {
-    return n.as<bool>();
+    if (n.IsScalar()) return n.as<bool>();
   } catch (const YAML::Exception&) {
-    throw InputError(w.file, w.line(n), w.key(key) + ": expected true or false");
   }
+  w.fail(n, key, "expected true or false, got " + describe(n));
 }
 
 Field number(const std::string& key, double& target, const Where& w) {
@@ -71,9 +166,7 @@ Field number(const std::string& key, double& target, const Where& w) {
 }
 
 Field integer(const std::string& key, int& target, const Where& w) {
-  return {key, [&target, w, key](const YAML::Node& n) {
-            target = static_cast<int>(read_integer(n, w, key));
-          }};
+  return {key, [&target, w, key](const YAML::Node& n) { target = read_integer<int>(n, w, key); }};
 }
 
 // optional keys: unset unless the file gives them
@@ -82,28 +175,58 @@ Field optional_number(const std::string& key, std::optional<double>& target, con
 }
 
 Field optional_integer(const std::string& key, std::optional<int>& target, const Where& w) {
-  return {key, [&target, w, key](const YAML::Node& n) {
-            target = static_cast<int>(read_integer(n, w, key));
-          }};
+  return {key, [&target, w, key](const YAML::Node& n) { target = read_integer<int>(n, w, key); }};
+}
+
+// refuses keys that are not plain words (a YAML complex key); a key given twice in one map
+// gives a warning with both lines and the last one counts (as in most YAML readers), the
+// earlier ones are dropped here so that --set and the reader see the same value
+void drop_duplicate_keys(YAML::Node node, Context& context, const std::string& section) {
+  if (!node.IsMap()) return;
+  std::map<std::string, std::vector<int>> lines;
+  for (const auto& item : node) {
+    const std::string where = section.empty() ? "top level" : section;
+    if (!item.first.IsScalar())
+      throw InputError(context.file, Where::line(item.first),
+                       where + ": expected key: value with a plain word as key, got " +
+                           describe(item.first) + " as a key");
+    lines[item.first.Scalar()].push_back(Where::line(item.first));
+  }
+  for (const auto& [key, at] : lines) {
+    const std::string dotted = section.empty() ? key : section + "." + key;
+    if (at.size() > 1) {
+      std::string earlier;
+      for (size_t i = 0; i + 1 < at.size(); ++i)
+        earlier += (earlier.empty() ? "" : ", ") + std::to_string(at[i]);
+      context.warnings.push_back(context.file + ":" + std::to_string(at.back()) + ": " + dotted +
+                                 ": given again (also on line " + earlier +
+                                 "); the last one counts");
+      for (size_t i = 0; i + 1 < at.size(); ++i) node.remove(key);
+    }
+    drop_duplicate_keys(node[key], context, dotted);
+  }
 }
 
 // reads a map section field by field; an unknown key is an error that lists the known ones
 void read_section(const YAML::Node& node, const Where& w, const std::vector<Field>& fields) {
   if (!node.IsMap())
-    throw InputError(w.file, w.line(node),
-                     (w.section.empty() ? std::string("top level") : w.section) +
-                         ": expected a map of key: value");
+    w.context->fail(w.section.empty() ? std::string("top level") : w.section,
+                    "expected a map of key: value, got " + describe(node), Where::line(node));
   for (const auto& item : node) {
-    const std::string key = item.first.as<std::string>();
+    if (!item.first.IsScalar())
+      w.context->fail(w.section.empty() ? std::string("top level") : w.section,
+                      "expected a plain word as key, got " + describe(item.first),
+                      Where::line(item.first));
+    const std::string key = item.first.Scalar();
     const Field* field = nullptr;
     for (const Field& f : fields)
       if (f.key == key) field = &f;
     if (!field) {
       std::string known;
       for (const Field& f : fields) known += (known.empty() ? "" : ", ") + f.key;
-      throw InputError(w.file, w.line(item.first),
-                       w.key(key) + ": unknown key; expected one of: " + known);
+      w.fail(item.first, key, "unknown key; expected one of: " + known);
     }
+    w.context->lines[w.key(key)] = Where::line(item.first);
     field->read(item.second);
   }
 }
@@ -182,38 +305,43 @@ std::vector<Field> referee_fields(RefereeParams& p, const Where& w) {
   };
 }
 
-// applies "a.b.c=value" to the YAML tree, creating maps on the way
-void apply_override(YAML::Node& root, const std::string& assignment, const std::string& file) {
+// applies "a.b.c=value" to the YAML tree, creating maps on the way, and notes that `option`
+// (--set, --seed) gave the key, so that an error about it names the option and not the file
+void apply_override(YAML::Node& root, const std::string& assignment, const std::string& option,
+                    Context& context) {
   const size_t eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)
-    throw InputError(file, "--set " + assignment, "expected key.path=value");
+    throw InputError(option, 0, "'" + assignment + "': expected key.path=value");
   const std::string path = assignment.substr(0, eq);
+  const std::string text = assignment.substr(eq + 1);
+  if (text.find_first_not_of(" \t") == std::string::npos)
+    throw InputError(option, 0, path + ": expected a value after '=', got nothing");
   YAML::Node value;
   try {
-    value = YAML::Load(assignment.substr(eq + 1));
+    value = YAML::Load(text);
+  } catch (const YAML::DeepRecursion& e) {
+    throw InputError(option, 0,
+                     path + ": value nested " + std::to_string(e.depth()) + " levels deep");
   } catch (const YAML::Exception& e) {
-    throw InputError(file, "--set " + path, std::string("value is not valid YAML: ") + e.what());
+    throw InputError(option, 0, path + ": value is not valid YAML: " + e.msg);
   }
+  drop_duplicate_keys(value, context, path);
   std::vector<std::string> keys;
   std::stringstream ss(path);
   for (std::string k; std::getline(ss, k, '.');) {
-    if (k.empty()) throw InputError(file, "--set " + path, "empty key in the path");
+    if (k.empty()) throw InputError(option, 0, path + ": empty key in the path");
     keys.push_back(k);
   }
+  if (path.back() == '.') throw InputError(option, 0, path + ": empty key in the path");
   std::vector<YAML::Node> chain{root};
   for (size_t i = 0; i + 1 < keys.size(); ++i) {
     YAML::Node next = chain.back()[keys[i]];
     if (next.IsDefined() && !next.IsMap() && !next.IsNull())
-      throw InputError(file, "--set " + path, keys[i] + " is not a section");
+      throw InputError(option, 0, path + ": " + keys[i] + " is not a section");
     chain.push_back(next);
   }
   chain.back()[keys.back()] = value;
-}
-
-uint64_t read_seed(const YAML::Node& n, const Where& w, const std::string& key) {
-  const int64_t v = read_integer(n, w, key);
-  if (v < 0) throw InputError(w.file, w.line(n), w.key(key) + ": expected a seed >= 0");
-  return static_cast<uint64_t>(v);
+  context.origins[path] = option;
 }
 
 // resolves a file named in a scenario: relative to the scenario's folder, then as given
@@ -250,46 +378,85 @@ fs::path find_scenario(const std::string& name_or_path) {
                        known + ")");
 }
 
-vehicle_models::VehicleParams load_vehicle(const fs::path& file) {
-  YAML::Node root;
+namespace {
+
+// parses a YAML file; a failure names the file and the line
+YAML::Node parse_yaml_file(const fs::path& file, const std::string& what) {
+  const std::string name = file.string();
+  if (!fs::is_regular_file(file)) throw InputError(name, 0, "no such " + what + " file");
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(name, 0, "cannot read the " + what + " file");
   try {
-    if (!fs::is_regular_file(file)) throw InputError(file.string(), 0, "no such vehicle file");
-    root = YAML::LoadFile(file.string());
+    return YAML::Load(in);
+  } catch (const YAML::DeepRecursion& e) {
+    // yaml-cpp's message for it is "bad file"
+    throw InputError(name, e.mark.is_null() ? 0 : e.mark.line + 1,
+                     "malformed YAML: nested " + std::to_string(e.depth()) +
+                         " levels deep, more than any " + what + " file");
   } catch (const YAML::Exception& e) {
-    throw InputError(file.string(), e.mark.is_null() ? 0 : e.mark.line + 1,
-                     "malformed YAML: " + e.msg);
+    throw InputError(name, e.mark.is_null() ? 0 : e.mark.line + 1, "malformed YAML: " + e.msg);
   }
-  vehicle_models::VehicleParams p;
-  const Where w{file.string(), ""};
+}
+
+// a vehicle file's keys, its warnings added to the context's
+vehicle_models::VehicleParams read_vehicle_file(const fs::path& file,
+                                                std::vector<std::string>& warnings) {
+  const YAML::Node root = parse_yaml_file(file, "vehicle");
   if (root.IsNull()) throw InputError(file.string(), 0, "empty vehicle file");
+  Context context{file.string(), {}, {}, {}};
+  drop_duplicate_keys(root, context, "");
+  vehicle_models::VehicleParams p;
+  const Where w{&context, ""};
   read_section(root, w, vehicle_fields(p, w));
-  if (const std::string error = p.validate(); !error.empty())
-    throw InputError(file.string(), 0, error);
+  if (const std::string error = p.validate(); !error.empty()) context.fail_check("", error);
+  warnings.insert(warnings.end(), context.warnings.begin(), context.warnings.end());
   return p;
 }
 
-Scenario load_scenario(const fs::path& file, const std::vector<std::string>& overrides) {
-  const std::string fname = file.string();
-
-  // parse, then apply the command line's --set values
-  YAML::Node root;
-  try {
-    std::ifstream in(file);
-    if (!in) throw InputError(fname, 0, "cannot read the scenario file");
-    root = YAML::Load(in);
-  } catch (const YAML::Exception& e) {
-    throw InputError(fname, e.mark.is_null() ? 0 : e.mark.line + 1, "malformed YAML: " + e.msg);
+// a run folder is named after the scenario: a plain file name, nothing that leads elsewhere
+std::string run_name_error(const std::string& name) {
+  if (name.empty()) return "expected a plain name for the run folder, got nothing";
+  if (name == "." || name == "..")
+    return "expected a plain name for the run folder, got '" + name + "'";
+  if (name.size() > 100) return "expected a name of at most 100 characters for the run folder";
+  for (const char c : name) {
+    if (c == '/' || c == '\\')
+      return "expected a plain name for the run folder, without / or \\, got '" + name + "'";
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
+      return "expected a plain name for the run folder, without control characters";
   }
+  return {};
+}
+
+}  // namespace
+
+vehicle_models::VehicleParams load_vehicle(const fs::path& file) {
+  std::vector<std::string> warnings;
+  return read_vehicle_file(file, warnings);
+}
+
+Scenario load_scenario(const fs::path& file, const std::vector<std::string>& overrides,
+                       std::optional<uint64_t> seed) {
+  const std::string fname = file.string();
+  Context context{fname, {}, {}, {}};
+
+  // parse, drop keys given twice (with a warning), then apply the command line's values
+  YAML::Node root = parse_yaml_file(file, "scenario");
   if (root.IsNull()) throw InputError(fname, 0, "empty scenario file");
-  if (!root.IsMap()) throw InputError(fname, 1, "expected a map of scenario keys");
-  for (const std::string& o : overrides) apply_override(root, o, fname);
+  if (!root.IsMap()) throw InputError(fname, Where::line(root), "expected a map of scenario keys");
+  drop_duplicate_keys(root, context, "");
+  if (seed) apply_override(root, "seed=" + std::to_string(*seed), "--seed", context);
+  for (const std::string& o : overrides) apply_override(root, o, "--set", context);
 
   Scenario s;
   s.name = file.stem().string();
   s.source_file = file;
-  const Where top{fname, ""};
+  const Where top{&context, ""};
   std::optional<uint64_t> generate_seed;
   bool has_event = false;
+  // sensors switched off explicitly, which a raw-data perception contradicts
+  bool lidar_disabled = false;
+  bool camera_disabled = false;
 
   // top-level keys
   std::vector<Field> fields = {
@@ -297,31 +464,31 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
       {"event",
        [&](const YAML::Node& n) {
          const auto ev = core::event_from_string(read_string(n, top, "event"));
-         if (!ev)
-           throw InputError(fname, top.line(n),
-                            "event: expected skidpad, acceleration, autocross or trackdrive");
+         if (!ev) top.fail(n, "event", "expected skidpad, acceleration, autocross or trackdrive");
          s.event = *ev;
          has_event = true;
        }},
-      {"seed", [&](const YAML::Node& n) { s.seed = read_seed(n, top, "seed"); }},
+      {"seed", [&](const YAML::Node& n) { s.seed = read_integer<uint64_t>(n, top, "seed"); }},
       number("start_delay_s", s.start_delay_s, top),
       number("slam_latency_s", s.slam_latency_s, top),
       {"track",
        [&](const YAML::Node& n) {
-         const Where w{fname, "track"};
+         const Where w{&context, "track"};
          if (n.IsScalar()) {
            s.track.file = resolve(file, n.Scalar());
            return;
          }
          read_section(n, w,
-                      {{"file", [&](const YAML::Node& v) {
+                      {{"file",
+                        [&](const YAML::Node& v) {
                           s.track.file = resolve(file, read_string(v, w, "file"));
                         }},
                        {"generate", [&](const YAML::Node& v) {
-                          const Where g{fname, "track.generate"};
+                          const Where g{&context, "track.generate"};
                           if (v.IsNull()) return;
                           read_section(v, g, {{"seed", [&](const YAML::Node& x) {
-                                                 generate_seed = read_seed(x, g, "seed");
+                                                 generate_seed =
+                                                     read_integer<uint64_t>(x, g, "seed");
                                                }}});
                           if (!generate_seed) generate_seed = std::numeric_limits<uint64_t>::max();
                         }}});
@@ -330,10 +497,11 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
        [&](const YAML::Node& n) {
          if (n.IsScalar()) {
            s.vehicle_source = n.Scalar();
-           if (s.vehicle_source != "default") s.vehicle = load_vehicle(resolve(file, n.Scalar()));
+           if (s.vehicle_source != "default")
+             s.vehicle = read_vehicle_file(resolve(file, n.Scalar()), context.warnings);
            return;
          }
-         const Where w{fname, "vehicle"};
+         const Where w{&context, "vehicle"};
          s.vehicle_source = "inline";
          read_section(n, w, vehicle_fields(s.vehicle, w));
        }},
@@ -342,31 +510,33 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
          s.perception = read_string(n, top, "perception");
          if (s.perception != "ground_truth" && s.perception != "cone_sensor" &&
              s.perception != "lidar" && s.perception != "stereo" && s.perception != "fused")
-           throw InputError(fname, top.line(n),
-                            "perception: expected ground_truth, cone_sensor, lidar, stereo or "
-                            "fused, got '" + s.perception + "'");
+           top.fail(n, "perception",
+                    "expected ground_truth, cone_sensor, lidar, stereo or "
+                    "fused, got '" +
+                        s.perception + "'");
        }},
       {"slam",
        [&](const YAML::Node& n) {
          s.slam = read_string(n, top, "slam");
          if (s.slam != "none" && s.slam != "graph")
-           throw InputError(fname, top.line(n),
-                            "slam: expected none or graph (ekf, fastslam1 and fastslam2 are not "
-                            "built yet), got '" + s.slam + "'");
+           top.fail(n, "slam",
+                    "expected none or graph (ekf, fastslam1 and fastslam2 are not "
+                    "built yet), got '" +
+                        s.slam + "'");
        }},
       {"driver",
        [&](const YAML::Node& n) {
-         const Where w{fname, "driver"};
+         const Where w{&context, "driver"};
          read_section(n, w, driver_fields(s.driver, w));
        }},
       {"referee",
        [&](const YAML::Node& n) {
-         const Where w{fname, "referee"};
+         const Where w{&context, "referee"};
          read_section(n, w, referee_fields(s.referee, w));
        }},
       {"sensors",
        [&](const YAML::Node& n) {
-         const Where w{fname, "sensors"};
+         const Where w{&context, "sensors"};
          auto& ss = s.sensors;
          read_section(
              n, w,
@@ -375,7 +545,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
               number("cone_fov_deg", ss.cone_fov_deg, w),
               {"cone_sensor",
                [&](const YAML::Node& v) {
-                 const Where c{fname, "sensors.cone_sensor"};
+                 const Where c{&context, "sensors.cone_sensor"};
                  auto& cs = ss.cone_sensor;
                  read_section(v, c,
                               {number("rate_hz", cs.timing.rate_hz, c),
@@ -397,50 +567,56 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                }},
               {"lidar",
                [&](const YAML::Node& v) {
-                 const Where c{fname, "sensors.lidar"};
+                 const Where c{&context, "sensors.lidar"};
                  read_section(v, c,
                               {{"enabled",
                                 [&](const YAML::Node& x) {
                                   ss.lidar_enabled = read_bool(x, c, "enabled");
+                                  lidar_disabled = !ss.lidar_enabled;
                                 }},
                                {"model",
                                 [&](const YAML::Node& x) {
                                   ss.lidar_model = read_string(x, c, "model");
                                   if (!sensors::lidar_preset(ss.lidar_model))
-                                    throw InputError(fname, c.line(x),
-                                                     "sensors.lidar.model: expected vlp16, "
-                                                     "vlp32c or os1-64");
+                                    c.fail(x, "model",
+                                           "expected vlp16, "
+                                           "vlp32c or os1-64");
                                 }},
                                number("latency_s", ss.lidar_latency_s, c),
                                {"mount", [&](const YAML::Node& x) {
                                   ss.lidar_mount = read_string(x, c, "mount");
                                   if (!sensors::lidar_mount_preset(ss.lidar_mount))
-                                    throw InputError(fname, c.line(x),
-                                                     "sensors.lidar.mount: expected front_wing "
-                                                     "or main_hoop");
+                                    c.fail(x, "mount",
+                                           "expected front_wing "
+                                           "or main_hoop");
                                 }}});
                }},
               {"camera", [&](const YAML::Node& v) {
-                 const Where c{fname, "sensors.camera"};
+                 const Where c{&context, "sensors.camera"};
                  auto& cam = ss.camera;
                  read_section(
                      v, c,
                      {{"enabled",
-                       [&](const YAML::Node& x) { ss.camera_enabled = read_bool(x, c, "enabled"); }},
+                       [&](const YAML::Node& x) {
+                         ss.camera_enabled = read_bool(x, c, "enabled");
+                         camera_disabled = !ss.camera_enabled;
+                       }},
                       {"depth",
                        [&](const YAML::Node& x) { ss.camera_depth = read_bool(x, c, "depth"); }},
                       number("rate_hz", ss.camera_rate_hz, c),
                       number("latency_s", ss.camera_latency_s, c),
-                      integer("width_px", cam.width_px, c), integer("height_px", cam.height_px, c),
+                      integer("width_px", cam.width_px, c),
+                      integer("height_px", cam.height_px, c),
                       number("horizontal_fov_deg", cam.horizontal_fov_deg, c),
                       number("baseline_m", cam.baseline_m, c),
-                      number("mount_x_m", cam.mount_x_m, c), number("mount_z_m", cam.mount_z_m, c),
+                      number("mount_x_m", cam.mount_x_m, c),
+                      number("mount_z_m", cam.mount_z_m, c),
                       number("pitch_down_deg", cam.pitch_down_deg, c)});
                }}});
        }},
       {"pass",
        [&](const YAML::Node& n) {
-         const Where w{fname, "pass"};
+         const Where w{&context, "pass"};
          read_section(n, w,
                       {{"completed",
                         [&](const YAML::Node& v) {
@@ -458,7 +634,8 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
        }},
   };
   read_section(root, top, fields);
-  if (!has_event) throw InputError(fname, "event", "missing; expected skidpad, acceleration, autocross or trackdrive");
+  if (!has_event)
+    context.fail("event", "missing; expected skidpad, acceleration, autocross or trackdrive");
 
   // a generated circuit without its own seed follows the scenario seed
   if (generate_seed) {
@@ -467,66 +644,124 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   }
 
   // check the values as a whole
-  if (const std::string e = s.vehicle.validate(); !e.empty())
-    throw InputError(fname, "vehicle", e);
-  if (const std::string e = s.driver.validate(); !e.empty()) throw InputError(fname, "driver", e);
+  if (const std::string e = s.vehicle.validate(); !e.empty()) context.fail_check("vehicle", e);
+  if (const std::string e = s.driver.validate(); !e.empty()) context.fail_check("driver", e);
   if (!(s.sensors.driver_rate_hz >= 1.0 && s.sensors.driver_rate_hz <= 500.0) ||
       !core::whole_physics_steps(s.sensors.driver_rate_hz))
-    throw InputError(fname, "sensors.driver_rate_hz",
-                     "expected a rate from 1 to 500 Hz whose period is a whole number of "
-                     "physics steps of 2 ms (e.g. 10, 20, 25, 50, 100)");
+    context.fail("sensors.driver_rate_hz",
+                 "expected a rate from 1 to 500 Hz whose period is a whole number of "
+                 "physics steps of 2 ms (e.g. 10, 20, 25, 50, 100)");
   if (!(s.sensors.cone_range_m > 0.0 && s.sensors.cone_range_m <= 200.0))
-    throw InputError(fname, "sensors.cone_range_m", "expected a range in (0, 200] m");
+    context.fail("sensors.cone_range_m", "expected a range in (0, 200] m");
   if (!(s.sensors.cone_fov_deg > 0.0 && s.sensors.cone_fov_deg <= 360.0))
-    throw InputError(fname, "sensors.cone_fov_deg", "expected a field of view in (0, 360] degrees");
+    context.fail("sensors.cone_fov_deg", "expected a field of view in (0, 360] degrees");
   if (const std::string e = s.sensors.cone_sensor.validate(); !e.empty())
-    throw InputError(fname, "sensors", e);
+    context.fail_check("sensors", e);
   if (const std::string e = s.sensors.camera.validate(); !e.empty())
-    throw InputError(fname, "sensors.camera", e);
+    context.fail_check("sensors.camera", e);
   {
     if (!core::whole_physics_steps(s.sensors.camera_rate_hz))
-      throw InputError(fname, "sensors.camera.rate_hz",
-                       "expected a rate whose period is a whole number of physics steps of 2 ms "
-                       "(e.g. 10, 20, 25, 50)");
+      context.fail("sensors.camera.rate_hz",
+                   "expected a rate whose period is a whole number of physics steps of 2 ms "
+                   "(e.g. 10, 20, 25, 50)");
   }
   if (s.pass.max_cones_hit < 0 || s.pass.max_off_course < 0 || s.pass.max_final_time_s < 0.0)
-    throw InputError(fname, "pass", "expected limits >= 0");
+    context.fail("pass", "expected limits >= 0");
   if (s.pass.max_map_rmse_m && !(*s.pass.max_map_rmse_m > 0.0))
-    throw InputError(fname, "pass.max_map_rmse_m", "expected a distance > 0 m");
+    context.fail("pass.max_map_rmse_m", "expected a distance > 0 m");
   if (s.pass.max_ate_rmse_m && !(*s.pass.max_ate_rmse_m > 0.0))
-    throw InputError(fname, "pass.max_ate_rmse_m", "expected a distance > 0 m");
+    context.fail("pass.max_ate_rmse_m", "expected a distance > 0 m");
   if (s.pass.min_da_correct_fraction &&
       !(*s.pass.min_da_correct_fraction >= 0.0 && *s.pass.min_da_correct_fraction <= 1.0))
-    throw InputError(fname, "pass.min_da_correct_fraction", "expected a fraction from 0 to 1");
+    context.fail("pass.min_da_correct_fraction", "expected a fraction from 0 to 1");
   if (s.pass.max_false_loop_closures && *s.pass.max_false_loop_closures < 0)
-    throw InputError(fname, "pass.max_false_loop_closures", "expected a count >= 0");
+    context.fail("pass.max_false_loop_closures", "expected a count >= 0");
   {
     const PassCriteria& p = s.pass;
     const bool slam_criteria = p.max_map_rmse_m || p.max_ate_rmse_m ||
                                p.min_da_correct_fraction || p.max_false_loop_closures;
     if (slam_criteria && s.slam == "none")
-      throw InputError(fname, "pass",
-                       "SLAM criteria (max_map_rmse_m, max_ate_rmse_m, min_da_correct_fraction, "
-                       "max_false_loop_closures) need slam: graph");
+      context.fail("pass",
+                   "SLAM criteria (max_map_rmse_m, max_ate_rmse_m, min_da_correct_fraction, "
+                   "max_false_loop_closures) need slam: graph");
   }
   if (!(s.start_delay_s >= 0.0 && s.start_delay_s <= 60.0))
-    throw InputError(fname, "start_delay_s", "expected a delay from 0 to 60 s");
+    context.fail("start_delay_s", "expected a delay from 0 to 60 s");
   {
     const double sweep_s = 1.0 / sensors::lidar_preset(s.sensors.lidar_model)->rate_hz;
     if (!(s.sensors.lidar_latency_s >= 0.0 && s.sensors.lidar_latency_s < sweep_s))
-      throw InputError(fname, "sensors.lidar.latency_s",
-                       "expected a latency from 0 s to less than one sweep (" +
-                           std::to_string(sweep_s) + " s)");
+      context.fail(
+          "sensors.lidar.latency_s",
+          "expected a latency from 0 s to less than one sweep (" + std::to_string(sweep_s) + " s)");
     if (!(s.sensors.camera_latency_s >= 0.0 && s.sensors.camera_latency_s <= 1.0))
-      throw InputError(fname, "sensors.camera.latency_s", "expected a latency from 0 to 1 s");
+      context.fail("sensors.camera.latency_s", "expected a latency from 0 to 1 s");
   }
   if (!(s.slam_latency_s >= 0.0 && s.slam_latency_s <= 1.0))
-    throw InputError(fname, "slam_latency_s", "expected a latency from 0 to 1 s");
+    context.fail("slam_latency_s", "expected a latency from 0 to 1 s");
   if (s.slam != "none" && s.perception == "ground_truth")
-    throw InputError(fname, "slam", "SLAM needs observations with noise: set perception to "
-                                    "cone_sensor, lidar, stereo or fused");
+    context.fail("slam",
+                 "SLAM needs observations with noise: set perception to "
+                 "cone_sensor, lidar, stereo or fused");
   if (s.track.file && s.track.generate_seed)
-    throw InputError(fname, "track", "give either file or generate, not both");
+    context.fail("track", "give either file or generate, not both");
+
+  // the run folder's name
+  if (const std::string e = run_name_error(s.name); !e.empty()) {
+    if (context.lines.count("name") || context.origin("name")) context.fail("name", e);
+    throw InputError(fname, 0, "the file name gives the run folder's name: " + e);
+  }
+
+  // the referee's rules, with the lap count the driver is given; times within what the sim
+  // clock (integer microseconds) holds many times over
+  {
+    RefereeParams referee = s.referee;
+    referee.trackdrive_laps = s.driver.trackdrive_laps;
+    if (const std::string e = referee.validate(); !e.empty()) context.fail_check("referee", e);
+    const std::pair<const char*, double> bounded[] = {
+        {"cone_penalty_s", s.referee.cone_penalty_s},
+        {"off_course_penalty_s", s.referee.off_course_penalty_s},
+        {"timeout_acceleration_s", s.referee.timeout_acceleration_s},
+        {"timeout_skidpad_s", s.referee.timeout_skidpad_s},
+        {"timeout_autocross_s", s.referee.timeout_autocross_s},
+        {"timeout_trackdrive_first_lap_s", s.referee.timeout_trackdrive_first_lap_s},
+        {"timeout_trackdrive_total_s", s.referee.timeout_trackdrive_total_s},
+        {"stuck_time_s", s.referee.stuck_time_s},
+        {"stopped_time_s", s.referee.stopped_time_s}};
+    for (const auto& [key, value] : bounded)
+      if (value > kMaxRefereeSeconds)
+        context.fail(std::string("referee.") + key,
+                     "expected at most " + std::to_string(static_cast<int>(kMaxRefereeSeconds)) +
+                         " s, got " + (std::ostringstream() << value).str());
+    if (!(s.referee.stuck_speed_mps <= 100.0 && s.referee.stopped_speed_mps <= 100.0 &&
+          s.referee.left_track_distance_m <= 1000.0))
+      context.fail("referee", "expected speeds up to 100 m/s and a distance up to 1000 m");
+  }
+
+  // a sensor switched off explicitly cannot feed the perception that needs it
+  const bool raw_lidar = s.perception == "lidar" || s.perception == "fused";
+  const bool raw_camera = s.perception == "stereo" || s.perception == "fused";
+  if (lidar_disabled && raw_lidar)
+    context.fail("sensors.lidar.enabled",
+                 "false contradicts perception: " + s.perception + ", which needs the LiDAR");
+  if (camera_disabled && raw_camera)
+    context.fail("sensors.camera.enabled",
+                 "false contradicts perception: " + s.perception + ", which needs the camera");
+
+  // the camera renders into the car model's offscreen buffer
+  {
+    const vehicle_models::MjcfOptions buffer;
+    if (s.sensors.camera.width_px > buffer.offscreen_width_px)
+      context.fail("sensors.camera.width_px", "expected at most " +
+                                                  std::to_string(buffer.offscreen_width_px) +
+                                                  " px (the offscreen buffer), got " +
+                                                  std::to_string(s.sensors.camera.width_px));
+    if (s.sensors.camera.height_px > buffer.offscreen_height_px)
+      context.fail("sensors.camera.height_px", "expected at most " +
+                                                   std::to_string(buffer.offscreen_height_px) +
+                                                   " px (the offscreen buffer), got " +
+                                                   std::to_string(s.sensors.camera.height_px));
+  }
+  s.warnings = std::move(context.warnings);
   return s;
 }
 

@@ -96,16 +96,22 @@ struct Scenario {
   double start_delay_s = 1.0;
   /// Where the scenario was read from (empty for a built-in default).
   std::filesystem::path source_file;
+  /// What the reader let pass but the user should hear of ("file:line: key: given again").
+  std::vector<std::string> warnings;
 };
 
 /// Finds a scenario by file path or by the name of a shipped one (scenarios/<name>.yaml).
 /// Throws core::InputError when neither exists.
 std::filesystem::path find_scenario(const std::string& name_or_path);
 
-/// Reads a scenario file, applying `overrides` ("key.path=value", as --set gives them) before
-/// the values are checked. Throws core::InputError naming the file, line and key.
+/// Reads a scenario file, applying `seed` (as --seed gives it) and then `overrides`
+/// ("key.path=value", as --set gives them) before the values are checked. Every value is checked here,
+/// before anything runs or is written. Throws core::InputError naming the file, line and key,
+/// or the option ("--set: key: ...", "--seed: ...") for a value from the command line. A key
+/// given twice is a warning in Scenario::warnings, and the last one counts.
 Scenario load_scenario(const std::filesystem::path& file,
-                       const std::vector<std::string>& overrides = {});
+                       const std::vector<std::string>& overrides = {},
+                       std::optional<uint64_t> seed = std::nullopt);
 
 /// Reads a vehicle parameter file (keys of VehicleParams). Throws core::InputError.
 vehicle_models::VehicleParams load_vehicle(const std::filesystem::path& file);

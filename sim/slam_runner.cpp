@@ -1,18 +1,18 @@
 #include "sim/slam_runner.hpp"
 
-#include "sim/perception_runner.hpp"
-
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <numbers>
 #include <stdexcept>
 
 #include "core/time.hpp"
 #include "sim/evaluation.hpp"
 #include "sim/gnuplot.hpp"
+#include "sim/perception_runner.hpp"
 
 namespace conesim::sim {
 
@@ -28,6 +28,8 @@ constexpr double kMatchCutoffM = 1.0;
 // a loop closure is true when the car is this close to where it was much earlier
 constexpr double kLoopTruthRadiusM = 15.0;
 constexpr double kLoopTruthMinTravelM = 60.0;
+// how often the true cones in the perception's view are noted, sim microseconds
+constexpr TimeUs kInViewEveryUs = 50'000;
 
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
@@ -39,8 +41,9 @@ nlohmann::json pose_json(const core::Pose2& p) {
   return nlohmann::json{{"x_m", p.x}, {"y_m", p.y}, {"yaw_rad", p.yaw}};
 }
 
+// the root mean square, NaN (null in the JSON) when there is nothing to average
 double rms(const std::vector<double>& squares) {
-  if (squares.empty()) return 0.0;
+  if (squares.empty()) return NAN;
   double sum = 0.0;
   for (double s : squares) sum += s;
   return std::sqrt(sum / squares.size());
@@ -114,7 +117,9 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
   last_frame_pose_ = start;
   latency_us_ = core::from_seconds(s.slam_latency_s);
   if (latency_us_ > 0) slam_thread_ = std::make_unique<WorkerThread>();
+  view_ = perception_view(s);
   cone_observed_.assign(static_cast<size_t>(track.next_id()), 0);
+  cone_in_view_.assign(static_cast<size_t>(track.next_id()), 0);
   cone_index_.assign(static_cast<size_t>(track.next_id()), -1);
   for (size_t k = 0; k < track.cones.size(); ++k)
     cone_index_[track.cones[k].id] = static_cast<int>(k);
@@ -123,6 +128,8 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
 
 void SlamRunner::step(TimeUs t, const VehicleSim& car) {
   now_ = t;
+  // the true cones the perception could see from the true pose, every kInViewEveryUs
+  if (t % kInViewEveryUs == 0) note_cones_in_view(car.truth().pose);
   // sample what is due; samples arrive after their latency
   const bool imu_due = t % imu_.config().timing.period_us() == 0;
   const bool wheels_due = t % wheels_.config().timing.period_us() == 0;
@@ -159,6 +166,19 @@ void SlamRunner::step(TimeUs t, const VehicleSim& car) {
     while (at != delivered_.begin() && std::prev(at)->stamp > it->second.stamp) --at;
     delivered_.insert(at, it->second);
     in_flight_.erase(it);
+  }
+}
+
+void SlamRunner::note_cones_in_view(const core::Pose2& pose) {
+  // within [min_range_m, max_range_m] of the sensor and within half the field of view of the
+  // sensor's heading, the sensor sensor_x_m ahead of the rear axle
+  const double half_fov_rad = 0.5 * view_.fov_deg * std::numbers::pi / 180.0;
+  for (const tracks::Cone& c : track_.cones) {
+    const core::Vec2 local = pose.inverse_transform(c.position) - core::Vec2(view_.sensor_x_m, 0.0);
+    const double range_m = local.norm();
+    if (range_m < view_.min_range_m || range_m > view_.max_range_m) continue;
+    if (std::abs(std::atan2(local.y(), local.x())) > half_fov_rad) continue;
+    cone_in_view_[c.id] = 1;
   }
 }
 
@@ -366,10 +386,14 @@ nlohmann::json SlamRunner::metrics() const {
     true_used[m.true_cone_id] = 1;
     if (m.estimate.cls != true_cone(m.true_cone_id).cls) ++class_wrong;
   }
-  int observed = 0, missed = 0;
+  // missed: a true cone that was in the perception's view at some moment of the run (see
+  // note_cones_in_view) and that no map landmark was matched to, whether or not the perception
+  // reported it; observed: reported by the perception at least once (its labels)
+  int observed = 0, in_view = 0, missed = 0;
   for (const tracks::Cone& c : track_.cones) {
-    if (!cone_observed_[c.id]) continue;
-    ++observed;
+    observed += cone_observed_[c.id];
+    if (!cone_in_view_[c.id]) continue;
+    ++in_view;
     if (!true_used[c.id]) ++missed;
   }
   const core::Estimate e = backend_->estimate();
@@ -390,7 +414,7 @@ nlohmann::json SlamRunner::metrics() const {
     }
   }
   for (const tracks::Cone& c : track_.cones)
-    if (cone_observed_[c.id] && !true_used[c.id])
+    if (cone_in_view_[c.id] && !true_used[c.id])
       if (const int k = class_slot(c.cls); k >= 0) ++tally[k].missed;
   nlohmann::json by_class = nlohmann::json::object();
   for (size_t k = 0; k < kScoredClasses.size(); ++k)
@@ -398,7 +422,7 @@ nlohmann::json SlamRunner::metrics() const {
         {"matched", tally[k].matched},
         {"missed", tally[k].missed},
         {"spurious", tally[k].spurious},
-        {"rmse_m", number_or_null(tally[k].err2.empty() ? NAN : rms(tally[k].err2))}};
+        {"rmse_m", number_or_null(rms(tally[k].err2))}};
 
   // the map aligned: the rigid transform that best lays the matched estimates on their true
   // cones, then matched again
@@ -433,24 +457,26 @@ nlohmann::json SlamRunner::metrics() const {
   }
   const int total_da = da_correct_ + da_wrong_;
   return {
-      {"map_rmse_m", rms(err2)},
+      {"map_rmse_m", number_or_null(rms(err2))},
       {"map_matched", matched},
       {"map_missed", missed},
       {"map_spurious", static_cast<int>(e.map.size()) - matched},
+      {"map_cones_in_view", in_view},
       {"map_cones_observed", observed},
       {"map_class_wrong", class_wrong},
-      {"map_rmse_aligned_m", rms(aligned_err2)},
+      {"map_rmse_aligned_m", number_or_null(rms(aligned_err2))},
       {"map_matched_aligned", aligned_err2.size()},
       {"map_alignment", pose_json(map_alignment)},
       {"by_class", by_class},
-      {"ate_rmse_m", rms(position_error2_)},
-      {"yaw_rmse_rad", rms(yaw_error2_)},
-      {"ate_rmse_aligned_m", rms(ate_aligned2)},
-      {"yaw_rmse_aligned_rad", rms(yaw_aligned2)},
+      {"ate_rmse_m", number_or_null(rms(position_error2_))},
+      {"yaw_rmse_rad", number_or_null(rms(yaw_error2_))},
+      {"ate_rmse_aligned_m", number_or_null(rms(ate_aligned2))},
+      {"yaw_rmse_aligned_rad", number_or_null(rms(yaw_aligned2))},
       {"trajectory_alignment", pose_json(path_alignment)},
       {"da_correct", da_correct_},
       {"da_wrong", da_wrong_},
-      {"da_correct_fraction", total_da ? static_cast<double>(da_correct_) / total_da : 1.0},
+      {"da_correct_fraction",
+       total_da ? nlohmann::json(static_cast<double>(da_correct_) / total_da) : nlohmann::json()},
       {"loop_closures", loop_closures_},
       {"false_loop_closures", false_loop_closures_},
       {"loop_closure_events", loop_closure_events_},
@@ -463,8 +489,7 @@ nlohmann::json SlamRunner::metrics() const {
   };
 }
 
-void SlamRunner::write_report(const std::filesystem::path& dir,
-                              const nlohmann::json& run_metrics) const {
+void SlamRunner::write_report(const std::filesystem::path& dir) const {
   // map.csv: every estimated cone with the true cone it stands for
   const std::vector<MapMatch> matches = match_map();
   {
@@ -553,50 +578,6 @@ void SlamRunner::write_report(const std::filesystem::path& dir,
                  "set title 'position error of the estimate over distance (no alignment)'\n"
                  "plot $error using 1:2 with lines lw 1.5 lc rgb '#d62728' notitle\n",
              {error}, dir / "slam_error.png", 1000, 500);
-
-  // the page: the run, the backend's figures, the figures
-  std::ofstream html(dir / "report.html");
-  html << "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>conesim report: "
-       << run_metrics.value("scenario", std::string()) << "</title>\n"
-       << "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
-          "td,th{border:1px solid #ccc;padding:4px 8px;text-align:left}</style></head><body>\n"
-       << "<h1>" << run_metrics.value("event", std::string()) << " on "
-       << run_metrics.value("track", std::string()) << " (seed " << run_metrics.value("seed", 0)
-       << ")</h1>\n<table>\n";
-  for (const char* key :
-       {"completed", "dnf_reason", "laps", "final_time_s", "penalties", "real_time_factor"})
-    if (run_metrics.contains(key))
-      html << "<tr><th>" << key << "</th><td>" << run_metrics[key].dump() << "</td></tr>\n";
-  html << "</table>\n<h2>SLAM: " << name() << "</h2>\n<table>\n";
-  const nlohmann::json figures = metrics();
-  for (const auto& [key, value] : figures.items())
-    if (key != "by_class")
-      html << "<tr><th>" << key << "</th><td>" << value.dump() << "</td></tr>\n";
-  html
-      << "</table>\n<h3>Map per class</h3>\n<table>\n"
-         "<tr><th>class</th><th>matched</th><th>missed</th><th>spurious</th><th>rmse_m</th></tr>\n";
-  for (const auto& [cls, f] : figures["by_class"].items())
-    html << "<tr><th>" << cls << "</th><td>" << f["matched"].dump() << "</td><td>"
-         << f["missed"].dump() << "</td><td>" << f["spurious"].dump() << "</td><td>"
-         << f["rmse_m"].dump() << "</td></tr>\n";
-  html << "</table>\n"
-       << "<h2>Map over ground truth</h2><img src=\"slam_map.png\" width=\"900\">\n"
-       << "<h2>Map error per class over distance</h2>"
-          "<img src=\"slam_map_error.png\" width=\"900\">\n"
-       << "<h2>Trajectory</h2><img src=\"slam_trajectory.png\" width=\"900\">\n"
-       << "<img src=\"slam_error.png\" width=\"900\">\n"
-       << "<h2>Run</h2><img src=\"run.png\" width=\"900\">\n";
-  // raw-data perception: its headline figures and the range bands
-  if (run_metrics.contains("perception") && run_metrics["perception"].contains("bands")) {
-    const nlohmann::json& p = run_metrics["perception"];
-    html << "<h2>Perception: " << p.value("mode", std::string()) << "</h2>\n<table>\n";
-    for (const char* key : {"recall_15m", "precision_15m", "colour_accuracy_10m", "recall",
-                            "precision", "colour_accuracy", "position_rmse_m", "frames"})
-      if (p.contains(key))
-        html << "<tr><th>" << key << "</th><td>" << p[key].dump() << "</td></tr>\n";
-    html << "</table>\n<img src=\"perception_bands.png\" width=\"900\">\n";
-  }
-  html << "</body></html>\n";
 }
 
 }  // namespace conesim::sim

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "sensors/vehicle_sensors.hpp"
+#include "sim/perception_runner.hpp"
 #include "sim/scenario.hpp"
 #include "sim/sensor_rig.hpp"
 #include "sim/vehicle_sim.hpp"
@@ -59,7 +60,12 @@ class SlamRunner {
   /// from estimate_now).
   core::ConeObservations observations_at(const core::Pose2& now) const;
 
-  /// The backend's figures for metrics.json (keys of ARCHITECTURE.md under slam.<name>).
+  /// The backend's figures for metrics.json (keys of ARCHITECTURE.md under slam.<name>). A
+  /// figure with nothing to measure is null, not 0: map_rmse_m when no landmark matched a true
+  /// cone, ate_rmse_m without an update, da_correct_fraction without an association.
+  /// map_missed counts the true cones that were within the perception's range and field of
+  /// view of the true pose at some moment of the run (checked every 50 ms of sim time) and that
+  /// no map landmark was matched to (one to one within 1 m); map_cones_in_view counts them all.
   nlohmann::json metrics() const;
 
   /// An estimated map cone and the true cone it stands for (-1: spurious).
@@ -90,9 +96,9 @@ class SlamRunner {
     return map_error_over_distance_;
   }
 
-  /// Writes map.csv, map_error.csv, the map, map-error and trajectory figures and report.html
-  /// into the run directory.
-  void write_report(const std::filesystem::path& dir, const nlohmann::json& run_metrics) const;
+  /// Writes map.csv, map_error.csv and the map, map-error and trajectory figures into the run
+  /// directory (report.html, written by sim/report from metrics.json, shows them).
+  void write_report(const std::filesystem::path& dir) const;
 
   std::string name() const { return backend_->name(); }
 
@@ -121,6 +127,8 @@ class SlamRunner {
   void feed_until(slam::Odometry& odometry, core::TimeUs stamp,
                   std::deque<VehicleSample>* queue) const;
   void snapshot_map_error(double distance_m, const core::Estimate& estimate);
+  // marks the true cones within the perception's range and field of view from a true pose
+  void note_cones_in_view(const core::Pose2& pose);
   const tracks::Cone& true_cone(int id) const { return track_.cones[cone_index_[id]]; }
 
   const tracks::Track& track_;
@@ -169,6 +177,10 @@ class SlamRunner {
   // true cone ids seen by each landmark (by landmark id), for its majority identity
   std::map<int, std::map<int, int>> landmark_votes_;
   std::vector<char> cone_observed_;
+  // the perception's range and field of view, and the true cones that were in it at some
+  // moment of the run (map_missed counts those the map has no landmark for)
+  PerceptionView view_;
+  std::vector<char> cone_in_view_;
   // index into track_.cones by cone id
   std::vector<int> cone_index_;
   double next_map_snapshot_m_ = 0.0;

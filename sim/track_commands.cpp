@@ -1,8 +1,10 @@
 #include "sim/track_commands.hpp"
 
+#include <cctype>
 #include <cmath>
 #include <ostream>
 #include <sstream>
+#include <tuple>
 
 #include "core/error.hpp"
 #include "sim/gnuplot.hpp"
@@ -20,12 +22,14 @@ using tracks::Track;
 namespace {
 
 // rounds a figure for JSON output (millimetres are plenty for layout figures)
-double round_mm(double v) { return std::round(v * 1000.0) / 1000.0; }
+double round_mm(double v) {
+  return std::round(v * 1000.0) / 1000.0;
+}
 
 }  // namespace
 
-int track_validate(const std::vector<fs::path>& files, std::optional<EventType> event,
-                   bool strict, std::ostream& out, std::ostream& err) {
+int track_validate(const std::vector<fs::path>& files, std::optional<EventType> event, bool strict,
+                   std::ostream& out, std::ostream& err) {
   int status = kExitOk;
   for (const fs::path& file : files) {
     // read: a malformed file is reported and the others are still checked
@@ -42,9 +46,9 @@ int track_validate(const std::vector<fs::path>& files, std::optional<EventType> 
     // check the rules of the event
     const EventType ev = event.value_or(tracks::infer_event(track));
     const auto violations = tracks::check_rules(track, ev);
-    out << file.string() << ": " << track.cones.size() << " cones, "
-        << tracks::to_string(ev) << ", " << violations.size() << " rule violation"
-        << (violations.size() == 1 ? "" : "s") << "\n";
+    out << file.string() << ": " << track.cones.size() << " cones, " << tracks::to_string(ev)
+        << ", " << violations.size() << " rule violation" << (violations.size() == 1 ? "" : "s")
+        << "\n";
     for (const auto& v : violations) out << file.string() << ": " << v.to_string() << "\n";
     if (strict && !violations.empty() && status == kExitOk) status = kExitViolations;
   }
@@ -55,9 +59,9 @@ nlohmann::json track_info(const Track& track, std::optional<EventType> event) {
   const EventType ev = event.value_or(tracks::infer_event(track));
   const tracks::TrackStats stats = tracks::compute_stats(track);
   nlohmann::json cones = nlohmann::json::object();
-  for (core::ConeClass c : {core::ConeClass::kBlue, core::ConeClass::kYellow,
-                          core::ConeClass::kOrangeSmall, core::ConeClass::kOrangeBig,
-                          core::ConeClass::kUnknown}) {
+  for (core::ConeClass c :
+       {core::ConeClass::kBlue, core::ConeClass::kYellow, core::ConeClass::kOrangeSmall,
+        core::ConeClass::kOrangeBig, core::ConeClass::kUnknown}) {
     cones[std::string(core::to_string(c))] = track.count(c);
   }
   nlohmann::json violations = nlohmann::json::array();
@@ -71,8 +75,10 @@ nlohmann::json track_info(const Track& track, std::optional<EventType> event) {
       {"min_width_m", round_mm(stats.min_width_m)},
       {"max_spacing_m", round_mm(stats.max_spacing_m)},
       {"min_radius_m", round_mm(stats.min_radius_m)},
-      {"start", {{"x", round_mm(track.start.x)}, {"y", round_mm(track.start.y)},
-                 {"yaw", round_mm(track.start.yaw)}}},
+      {"start",
+       {{"x", round_mm(track.start.x)},
+        {"y", round_mm(track.start.y)},
+        {"yaw", round_mm(track.start.yaw)}}},
       {"violations", violations},
       {"warnings", track.warnings},
   };
@@ -94,15 +100,30 @@ Track make_event_track(EventType event, uint64_t seed) {
 }
 
 void write_track_atomically(const Track& track, const fs::path& out) {
-  // same extension, so the writer picks the same format
+  // same extension, so the writer picks the same format; errors name the target, not the
+  // temporary file
   const fs::path partial = out.parent_path() / (".partial-" + out.filename().string());
+  std::string ext = out.extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".csv" && ext != ".yaml" && ext != ".yml")
+    throw core::InputError(
+        out.string(), 0,
+        "unknown extension '" + ext + "' for writing (expected .yaml, .yml or .csv)");
+  std::error_code ec;
+  if (!out.parent_path().empty() && !fs::is_directory(out.parent_path(), ec))
+    throw core::InputError(out.string(), 0,
+                           "cannot write: no folder " + out.parent_path().string());
   try {
     tracks::write_track(track, partial);
     fs::rename(partial, out);
-  } catch (...) {
-    std::error_code ec;
+  } catch (const fs::filesystem_error& e) {
     fs::remove(partial, ec);
-    throw;
+    throw core::InputError(out.string(), 0, "cannot write: " + e.code().message());
+  } catch (const core::InputError&) {
+    fs::remove(partial, ec);
+    throw core::InputError(out.string(), 0,
+                           "cannot write (the temporary file " + partial.filename().string() +
+                               " beside it could not be written)");
   }
 }
 
@@ -113,12 +134,11 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
 
   // data blocks: cones per class, lanes, centre line, start arrow, gates, violations
   std::vector<PlotData> data;
-  const std::pair<ConeClass, const char*> classes[] = {
-      {ConeClass::kBlue, "blue"},
-      {ConeClass::kYellow, "yellow"},
-      {ConeClass::kOrangeSmall, "orange_small"},
-      {ConeClass::kOrangeBig, "orange_big"},
-      {ConeClass::kUnknown, "unknown"}};
+  const std::pair<ConeClass, const char*> classes[] = {{ConeClass::kBlue, "blue"},
+                                                       {ConeClass::kYellow, "yellow"},
+                                                       {ConeClass::kOrangeSmall, "orange_small"},
+                                                       {ConeClass::kOrangeBig, "orange_big"},
+                                                       {ConeClass::kUnknown, "unknown"}};
   std::ostringstream plots;
   const char* colours[] = {"#1f4fd8", "#e6c200", "#ff7f0e", "#d94800", "#808080"};
   int i = 0;
@@ -128,8 +148,8 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
       if (c.cls == cls) d.rows.push_back({c.position.x(), c.position.y()});
     if (!d.rows.empty()) {
       plots << (plots.tellp() > 0 ? ", " : "") << "$" << name << " using 1:2 with points pt 7 ps "
-            << (cls == ConeClass::kOrangeBig ? 1.6 : 1.0) << " lc rgb '" << colours[i] << "' title '"
-            << name << " (" << d.rows.size() << ")'";
+            << (cls == ConeClass::kOrangeBig ? 1.6 : 1.0) << " lc rgb '" << colours[i]
+            << "' title '" << name << " (" << d.rows.size() << ")'";
       data.push_back(std::move(d));
     }
     ++i;
@@ -152,14 +172,16 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
 
   PlotData gates{"gates", {}};
   for (const auto& g : track.timing_gates)
-    gates.rows.push_back({g.left.x(), g.left.y(), g.right.x() - g.left.x(), g.right.y() - g.left.y()});
+    gates.rows.push_back(
+        {g.left.x(), g.left.y(), g.right.x() - g.left.x(), g.right.y() - g.left.y()});
   if (!gates.rows.empty()) {
     data.push_back(gates);
     plots << ", $gates using 1:2:3:4 with vectors nohead lw 2 lc rgb '#2ca02c' title 'timing gate'";
   }
   const double arrow_m = 4.0;
-  data.push_back({"start", {{track.start.x, track.start.y, arrow_m * std::cos(track.start.yaw),
-                             arrow_m * std::sin(track.start.yaw)}}});
+  data.push_back({"start",
+                  {{track.start.x, track.start.y, arrow_m * std::cos(track.start.yaw),
+                    arrow_m * std::sin(track.start.yaw)}}});
   plots << ", $start using 1:2:3:4 with vectors filled head lw 3 lc rgb '#000000' title 'start'";
 
   // a run: the driven path and the knocked cones; a bare track: its rule violations
@@ -180,6 +202,30 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
             << " knocked over'";
     }
   }
+  // the referee's events: a marker per kind, each with its label beside it
+  std::ostringstream labels;
+  if (overlay) {
+    using Kind = PlotOverlay::Mark::Kind;
+    const std::tuple<Kind, const char*, const char*, const char*> kinds[] = {
+        {Kind::kOffCourse, "off_course", "pt 9 ps 2.5 lc rgb '#9400d3'", "off-course"},
+        {Kind::kDnf, "dnf", "pt 5 ps 3 lc rgb '#e00000'", "DNF"},
+        {Kind::kConeHit, "cone_hits", "pt 1 ps 0.1 lc rgb '#000000'", ""}};
+    for (const auto& [kind, name, style, title] : kinds) {
+      PlotData d{name, {}};
+      for (const auto& m : overlay->marks)
+        if (m.kind == kind) d.rows.push_back({m.where.x(), m.where.y()});
+      if (d.rows.empty()) continue;
+      data.push_back(std::move(d));
+      plots << ", $" << name << " using 1:2 with points " << style << " title '" << title << "'";
+    }
+    for (const auto& m : overlay->marks) {
+      std::string text = m.label;
+      for (char& ch : text)
+        if (ch == '"' || ch == '\\') ch = ' ';
+      labels << "set label \"" << text << "\" at " << m.where.x() << "," << m.where.y()
+             << " offset 1,1 font ',9' tc rgb '#303030' front noenhanced\n";
+    }
+  }
   const auto violations =
       overlay ? std::vector<tracks::Violation>{} : tracks::check_rules(track, ev);
   PlotData viol{"violations", {}};
@@ -187,8 +233,7 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
   if (!viol.rows.empty()) {
     data.push_back(viol);
     plots << ", $violations using 1:2 with points pt 6 ps 4 lw 2 lc rgb '#e00000' title '"
-          << violations.size() << " rule violation" << (violations.size() == 1 ? "" : "s")
-          << "'";
+          << violations.size() << " rule violation" << (violations.size() == 1 ? "" : "s") << "'";
   }
 
   // the figure: equal axis scales, legend outside
@@ -205,7 +250,7 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
          << "\" noenhanced\n"
          << "set size ratio -1\nset grid\nset key outside right top\n"
          << "set xlabel 'x [m]'\nset ylabel 'y [m]'\n"
-         << "plot " << plots.str() << "\n";
+         << labels.str() << "plot " << plots.str() << "\n";
   render_png(script.str(), data, out_png);
 }
 

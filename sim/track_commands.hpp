@@ -4,11 +4,10 @@
 #include <cstdint>
 #include <filesystem>
 #include <iosfwd>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "tracks/track.hpp"
 
@@ -18,6 +17,8 @@ namespace conesim::sim {
 inline constexpr int kExitOk = 0;
 inline constexpr int kExitViolations = 1;
 inline constexpr int kExitBadInput = 2;
+/// Not for any input: a bug in conesim (or a failing machine), reported with its message.
+inline constexpr int kExitInternalError = 3;
 
 /// Reads each file and checks it against the rules of `event` (inferred per file when empty).
 /// Unreadable files print "file:line: what was expected" to `err` and give exit 2; rule
@@ -44,6 +45,14 @@ struct PlotOverlay {
   std::vector<int> knocked_cones;
   /// A line under the title (result summary).
   std::string subtitle;
+  /// A referee event drawn where it happened, with a short label ("off-course 1, lap 3").
+  struct Mark {
+    enum class Kind { kConeHit, kOffCourse, kDnf };
+    Kind kind = Kind::kOffCourse;
+    core::Vec2 where = core::Vec2::Zero();
+    std::string label;
+  };
+  std::vector<Mark> marks;
 };
 
 /// Plots the track with gnuplot: cones in their colours, lanes, centre line, start pose and

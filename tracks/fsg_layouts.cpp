@@ -104,16 +104,26 @@ Track make_skidpad() {
   track.left_lane = std::move(left_lane);
   track.right_lane = std::move(right_lane);
 
-  // driving path: entry, two clockwise laps of the right circle, two counter-clockwise laps of
-  // the left circle, exit to 1 m before the stop line; points every 0.5 m or a little less
-  constexpr double kStepM = 0.5;
-  std::vector<Vec2> path{Vec2(0.0, 0.0)};
-  append_straight(path, path.back(), {d, 0.0}, kStepM);
-  append_arc(path, right_centre, half_gap, 0.5 * kPi, -4.0 * kPi, kStepM);
-  append_arc(path, left_centre, half_gap, -0.5 * kPi, 4.0 * kPi, kStepM);
-  append_straight(path, path.back(), {d + 20.0, 0.0}, kStepM);
-  track.centre_line = std::move(path);
+  track.centre_line = skidpad_driving_path({d, 0.0}, Vec2::UnitX(), Vec2::Zero());
   return track;
+}
+
+std::vector<Vec2> skidpad_driving_path(const Vec2& timing_mid, const Vec2& forward,
+                                       const Vec2& start) {
+  // entry, two clockwise laps of the right circle, two counter-clockwise laps of the left
+  // circle, exit to 1 m before the stop line; points every 0.5 m or a little less
+  constexpr double kStepM = 0.5;
+  const double r = 0.5 * kSkidpadCentreDistanceM;
+  const Vec2 f = forward.normalized();
+  const Vec2 left(-f.y(), f.x());
+  const double heading = std::atan2(f.y(), f.x());
+  const double along_start = std::min((start - timing_mid).dot(f), 0.0);
+  std::vector<Vec2> path{timing_mid + along_start * f};
+  append_straight(path, path.back(), timing_mid, kStepM);
+  append_arc(path, timing_mid - r * left, r, heading + 0.5 * kPi, -4.0 * kPi, kStepM);
+  append_arc(path, timing_mid + r * left, r, heading - 0.5 * kPi, 4.0 * kPi, kStepM);
+  append_straight(path, path.back(), timing_mid + 20.0 * f, kStepM);
+  return path;
 }
 
 Track make_acceleration() {

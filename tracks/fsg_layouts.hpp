@@ -37,6 +37,13 @@ inline constexpr double kAccelerationStartSetbackM = 0.3;
 /// yellow outside (PacSim and the FSG handbook; fssim's file swaps them).
 Track make_skidpad();
 
+/// The skidpad's driving path for a layout whose timing line has its middle at timing_mid and
+/// is crossed along forward: from the start (moved onto the entry line) to the timing line, two
+/// clockwise laps of the right circle, two counter-clockwise laps of the left one, and 20 m of
+/// exit. Points every 0.5 m or a little less.
+std::vector<Vec2> skidpad_driving_path(const Vec2& timing_mid, const Vec2& forward,
+                                       const Vec2& start);
+
 /// Acceleration: 75 m between start and finish gate, 3 m or more wide, big orange cones at both
 /// gates and a braking zone of orange cones beyond the finish. Start pose 0.3 m behind the
 /// start line facing +x.

@@ -1,5 +1,6 @@
 #include "tracks/io.hpp"
 
+#include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -19,7 +20,9 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "tracks/fsg_layouts.hpp"
 #include "tracks/lanes.hpp"
+#include "tracks/rules.hpp"
 
 namespace conesim::tracks {
 
@@ -227,6 +230,17 @@ int line_of(const YAML::Node& node) {
   return mark.line >= 0 ? mark.line + 1 : 0;
 }
 
+// a key given twice in one map: a warning with both lines (yaml-cpp keeps both entries, and
+// the readers take them in file order, so lists given twice are read one after the other)
+void warn_repeated_key(const YAML::Node& key, std::map<std::string, int>& first_lines,
+                       const std::string& file, const std::string& where, Track& track) {
+  const auto [it, fresh] = first_lines.emplace(key.Scalar(), line_of(key));
+  if (!fresh)
+    track.warnings.push_back(file + ":" + std::to_string(line_of(key)) + ": " + where +
+                             key.Scalar() + ": given again (also on line " +
+                             std::to_string(it->second) + "); both are read");
+}
+
 // the value of a key that must be there (missing keys are zombie nodes in yaml-cpp)
 YAML::Node required(const YAML::Node& map, const std::string& key, const std::string& file,
                     const std::string& what) {
@@ -274,6 +288,11 @@ const YAML::Node& yaml_list(const YAML::Node& node, const std::string& file,
 YAML::Node load_yaml(const std::string& text, const std::string& file) {
   try {
     return YAML::Load(text);
+  } catch (const YAML::DeepRecursion& e) {
+    // yaml-cpp's message for it is "bad file"
+    throw InputError(file, e.mark.line >= 0 ? e.mark.line + 1 : 0,
+                     "malformed YAML: nested " + std::to_string(e.depth()) +
+                         " levels deep, more than any layout");
   } catch (const YAML::Exception& e) {
     throw InputError(file, e.mark.line >= 0 ? e.mark.line + 1 : 0, "malformed YAML: " + e.msg);
   }
@@ -354,6 +373,10 @@ void finish(Track& track, const Given& given) {
     rebuild_lanes(track);
   }
 
+  // big orange gates again, now that the lanes tell left from right across each group (before,
+  // only the nearest blue and yellow cones could, and those may stand round a corner)
+  if (!given.gates) track.timing_gates = gates_from_big_orange(track);
+
   // the centre line (not along absurdly long lanes), and a guessed start facing along it
   const std::vector<Vec2> left = track.lane_points(track.left_lane);
   double left_length_m = 0.0;
@@ -363,6 +386,28 @@ void finish(Track& track, const Given& given) {
   else
     track.warnings.push_back("the left lane is " + std::to_string(left_length_m) +
                              " m long; no centre line derived");
+
+  // a start guessed without a gate may stand off the track (the middle of the cones of a U or a
+  // loop is its infield): the car starts on the centre line, at the beginning of an open one
+  if (!given.start && track.timing_gates.empty() && track.centre_line.size() >= 2) {
+    const std::vector<Vec2>& line = track.centre_line;
+    size_t at = 0;
+    if (track.closed)
+      for (size_t i = 1; i < line.size(); ++i)
+        if ((line[i] - track.start.position()).squaredNorm() <
+            (line[at] - track.start.position()).squaredNorm())
+          at = i;
+    if ((line[at] - track.start.position()).norm() > 0.5) {
+      track.start.x = line[at].x();
+      track.start.y = line[at].y();
+      track.warnings.push_back("the guessed start moved onto the centre line at " +
+                               format_point(line[at]));
+      if (track.closed) {
+        orient_lanes(track);
+        track.centre_line = derive_centre_line(track);
+      }
+    }
+  }
   if (!given.start) {
     if (const std::optional<double> yaw = centre_line_yaw(track, track.start.position()))
       track.start.yaw = *yaw;
@@ -402,6 +447,21 @@ void finish(Track& track, const Given& given) {
     track.event = EventType::kSkidpad;
   else if (name.find("accel") != std::string::npos)
     track.event = EventType::kAcceleration;
+
+  // a skidpad's driving line is the figure eight through its timing line, not a line between
+  // lanes (its lanes are only the outer envelope)
+  if (track.event.value_or(infer_event(track)) == EventType::kSkidpad &&
+      !track.timing_gates.empty()) {
+    const Gate& g = track.timing_gates.front();
+    const Vec2 across = g.left - g.right;  // right post to left post: forward is its right turn
+    if (across.norm() > 0.0) {
+      // crossed the way the car starts (the referee orients the gate the same way)
+      Vec2 forward(across.y(), -across.x());
+      if (forward.dot(track.start.heading()) < 0.0) forward = -forward;
+      track.centre_line =
+          skidpad_driving_path(0.5 * (g.left + g.right), forward, track.start.position());
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -415,8 +475,10 @@ Track parse_fssim(const YAML::Node& root, const std::string& file, Track track) 
   std::vector<Vec2> posts;
 
   // walk the keys in file order so that ids follow the file
+  std::map<std::string, int> key_lines;
   for (const auto& entry : root) {
     const std::string key = entry.first.Scalar();
+    warn_repeated_key(entry.first, key_lines, file, "", track);
     const YAML::Node& value = entry.second;
     const auto read_cones = [&](ConeClass cls, std::vector<int>* lane) {
       for (const YAML::Node& item : yaml_list(value, file, key)) {
@@ -485,7 +547,9 @@ std::optional<ConeClass> pacsim_class(std::string_view name) {
   return class_named(kPacsimNames, name);
 }
 
-std::string_view pacsim_name(ConeClass cls) { return name_of(kPacsimNames, cls); }
+std::string_view pacsim_name(ConeClass cls) {
+  return name_of(kPacsimNames, cls);
+}
 
 bool yaml_bool(const YAML::Node& node, const std::string& file, const std::string& what) {
   const std::string v = node.IsScalar() ? lower(node.Scalar()) : "";
@@ -528,8 +592,10 @@ Track parse_pacsim(const YAML::Node& root, const std::string& file, Track track)
   };
 
   // walk the keys in file order so that ids follow the file
+  std::map<std::string, int> key_lines;
   for (const auto& entry : layout) {
     const std::string key = entry.first.Scalar();
+    warn_repeated_key(entry.first, key_lines, file, "track.", track);
     const YAML::Node& value = entry.second;
     if (key == "left" || key == "right" || key == "unknown") {
       std::vector<int>* lane =
@@ -622,9 +688,13 @@ constexpr ClassNames kEufsNames{{{ConeClass::kBlue, "blue"},
                                  {ConeClass::kOrangeBig, "big_orange"},
                                  {ConeClass::kUnknown, "unknown"}}};
 
-std::optional<ConeClass> eufs_class(std::string_view tag) { return class_named(kEufsNames, tag); }
+std::optional<ConeClass> eufs_class(std::string_view tag) {
+  return class_named(kEufsNames, tag);
+}
 
-std::string_view eufs_tag(ConeClass cls) { return name_of(kEufsNames, cls); }
+std::string_view eufs_tag(ConeClass cls) {
+  return name_of(kEufsNames, cls);
+}
 
 std::optional<ConeClass> epfl_class(std::string_view type) {
   if (type == "small_orange" || type == "orange") return ConeClass::kOrangeSmall;
@@ -651,26 +721,38 @@ Track parse_eufs(const std::string& text, const std::string& file, Track track) 
   const auto lines = content_lines(text);
 
   // an optional header, with conesim's id column
+  // conesim's own files add id, and lane (left or right, in driving order; on the car_start
+  // row: closed or open), so that its lanes read back as written
   size_t columns = kEufsColumns.size();
   bool has_id = false;
+  bool has_lane = false;
   size_t first_row = 0;
   if (!lines.empty() && split_fields(lines[0].second).front() == "tag") {
     const std::vector<std::string_view> header = split_fields(lines[0].second);
-    has_id = header.size() == columns + 1 && header.back() == "id";
+    has_id = header.size() > columns && header[columns] == "id";
+    has_lane = has_id && header.size() == columns + 2 && header.back() == "lane";
     const bool known = std::equal(kEufsColumns.begin(), kEufsColumns.end(), header.begin(),
                                   header.begin() + std::min(header.size(), columns));
-    if (!known || (header.size() != columns && !has_id))
-      throw InputError(file, lines[0].first,
-                       "expected the header " + std::string(kEufsHeader) + " (optionally ,id)");
+    if (!known ||
+        !(header.size() == columns || (has_id && header.size() == columns + 1) || has_lane))
+      throw InputError(
+          file, lines[0].first,
+          "expected the header " + std::string(kEufsHeader) + " (optionally ,id or ,id,lane)");
     columns = header.size();
     first_row = 1;
   }
+  Given given;
+  std::vector<int>* lanes[2] = {&track.left_lane, &track.right_lane};
 
   std::optional<int> start_line;
   for (size_t r = first_row; r < lines.size(); ++r) {
     const auto& [line, text_line] = lines[r];
     const std::vector<std::string_view> f = split_fields(text_line);
-    check_columns(f, columns, std::string(kEufsHeader) + (has_id ? ",id" : ""), file, line);
+    check_columns(f, columns,
+                  std::string(kEufsHeader) + (has_lane ? ",id,lane"
+                                              : has_id ? ",id"
+                                                       : ""),
+                  file, line);
 
     // the numbers of the row
     const double x = coordinate_or_throw(f[1], file, line, "x");
@@ -689,6 +771,7 @@ Track parse_eufs(const std::string& text, const std::string& file, Track track) 
             "a second car_start row (the first is on line " + std::to_string(*start_line) + ")");
       start_line = line;
       track.start = {x, y, core::normalize_angle(direction)};
+      if (has_lane && (f[8] == "closed" || f[8] == "open")) given.closed = f[8] == "closed";
       continue;
     }
     if (tag == "midpoint" || tag == "inactive_noise") continue;
@@ -719,9 +802,24 @@ Track parse_eufs(const std::string& text, const std::string& file, Track track) 
             "id: expected an integer from 0 to 999999999, found '" + std::string(id_text) + "'");
     }
     sink.add_with_id(*cls, {x, y}, line, covariance, id);
+
+    // the lane the cone belongs to, in file order
+    if (has_lane && !f[8].empty()) {
+      if (f[8] != "left" && f[8] != "right")
+        throw InputError(
+            file, line, "lane: expected left, right or nothing, found '" + std::string(f[8]) + "'");
+      if (id < 0) throw InputError(file, line, "lane: a cone in a lane needs its id");
+      lanes[f[8] == "left" ? 0 : 1]->push_back(id);
+      given.lanes = true;
+    }
   }
   sink.finish();
-  Given given;
+  // a lane cone dropped as a repeat of another is not in the layout
+  for (std::vector<int>* lane : lanes)
+    std::erase_if(*lane, [&track](int id) {
+      return std::none_of(track.cones.begin(), track.cones.end(),
+                          [id](const Cone& c) { return c.id == id; });
+    });
   given.start = start_line.has_value();
   finish(track, given);
   return track;
@@ -795,9 +893,16 @@ void write_text(const std::string& text, const std::filesystem::path& file) {
   if (!out) throw InputError(file.string(), 0, "write failed");
 }
 
+// the text without a UTF-8 byte-order mark (editors on Windows write one; it is no data)
+std::string_view without_bom(std::string_view text) {
+  if (text.starts_with("\xEF\xBB\xBF")) text.remove_prefix(3);
+  return text;
+}
+
 }  // namespace
 
-Track parse_track(const std::string& text, TrackFormat format, const std::string& name) {
+Track parse_track(const std::string& text_with_bom, TrackFormat format, const std::string& name) {
+  const std::string text(without_bom(text_with_bom));
   // refuse what cannot be a layout before parsing
   if (text.size() > kMaxTrackFileBytes)
     throw InputError(name, 0,
@@ -839,6 +944,7 @@ Track read_track(const std::filesystem::path& file) {
   std::string text(static_cast<size_t>(size), '\0');
   in.read(text.data(), static_cast<std::streamsize>(size));
   text.resize(static_cast<size_t>(in.gcount()));
+  text = std::string(without_bom(text));
 
   // the format from the extension and the content
   const std::string ext = lower(file.extension().string());
@@ -895,35 +1001,37 @@ void write_pacsim_yaml(const Track& track, const std::filesystem::path& file) {
 
 void write_eufs_csv(const Track& track, const std::filesystem::path& file) {
   std::ostringstream out;
-  out << kEufsHeader << ",id\n";
+  out << kEufsHeader << ",id,lane\n";
 
-  // the start pose, its yaw in the direction column
+  // the start pose, its yaw in the direction column, and whether the lanes close
   out << "car_start," << format_number(track.start.x) << "," << format_number(track.start.y) << ","
-      << format_number(track.start.yaw) << ",0.0,0.0,0.0,\n";
+      << format_number(track.start.yaw) << ",0.0,0.0,0.0,," << (track.closed ? "closed" : "open")
+      << "\n";
 
   // a row per cone: the lanes in driving order first, then the rest by id
-  const auto row = [&out](const Cone& c) {
+  const auto row = [&out](const Cone& c, const char* lane) {
     const Eigen::Matrix2d cov = c.covariance.value_or(Eigen::Matrix2d::Zero());
     out << eufs_tag(c.cls) << "," << format_number(c.position.x()) << ","
         << format_number(c.position.y()) << ",0.0," << format_number(cov(0, 0)) << ","
-        << format_number(cov(1, 1)) << "," << format_number(cov(0, 1)) << "," << c.id << "\n";
+        << format_number(cov(1, 1)) << "," << format_number(cov(0, 1)) << "," << c.id << "," << lane
+        << "\n";
   };
   std::vector<bool> written(track.cones.size(), false);
-  const auto write_lane = [&](const std::vector<int>& lane) {
+  const auto write_lane = [&](const std::vector<int>& lane, const char* name) {
     for (int id : lane)
       for (size_t i = 0; i < track.cones.size(); ++i)
         if (track.cones[i].id == id && !written[i]) {
-          row(track.cones[i]);
+          row(track.cones[i], name);
           written[i] = true;
         }
   };
-  write_lane(track.left_lane);
-  write_lane(track.right_lane);
+  write_lane(track.left_lane, "left");
+  write_lane(track.right_lane, "right");
   std::vector<const Cone*> rest;
   for (size_t i = 0; i < track.cones.size(); ++i)
     if (!written[i]) rest.push_back(&track.cones[i]);
   std::sort(rest.begin(), rest.end(), [](const Cone* a, const Cone* b) { return a->id < b->id; });
-  for (const Cone* c : rest) row(*c);
+  for (const Cone* c : rest) row(*c, "");
   write_text(out.str(), file);
 }
 

@@ -17,7 +17,8 @@
 //   that PacSim's GNSS model uses; cone positions are already in the track frame, so it is not
 //   applied (a non-zero one gives a warning) and writers emit zeros.
 // - EUFS CSV: car_start is the start pose (yaw in the direction column); midpoint and
-//   inactive_noise rows are skipped; conesim's own files add an id column.
+//   inactive_noise rows are skipped; conesim's own files add an id column and a lane column
+//   (left/right in driving order, closed/open on the car_start row) that give the lanes.
 // - EPFL CSV: no start pose (guessed); std_X/std_Y give a diagonal covariance.
 // - CSV formats give no lanes or gates: lanes are rebuilt (tracks/lanes.hpp), and each group of
 //   big orange cones on both sides of the track becomes a gate, ordered along the track.
@@ -56,9 +57,12 @@ Track parse_track(const std::string& text, TrackFormat format, const std::string
 /// are not part of the format; a reader numbers the cones in file order.
 void write_pacsim_yaml(const Track& track, const std::filesystem::path& file);
 
-/// Writes EUFS CSV: the header tag,x,y,direction,x_variance,y_variance,xy_covariance plus an
-/// `id` column that read_track reads back, a car_start row (yaw in the direction column), then
-/// the left lane and the right lane in driving order and the remaining cones by id. Classes are
+/// Writes EUFS CSV: the header tag,x,y,direction,x_variance,y_variance,xy_covariance plus the
+/// `id` and `lane` columns that read_track reads back, a car_start row (yaw in the direction
+/// column, `closed` or `open` in the lane column), then the left lane and the right lane in
+/// driving order (lane `left`, `right`) and the remaining cones by id. The lanes and whether
+/// they close read back as written, so a CSV -> YAML -> CSV round trip keeps them (a figure
+/// eight whose lanes cannot be rebuilt from the colours alone stays closed). Classes are
 /// written as blue, yellow, orange, big_orange and unknown; gates are not written (a reader
 /// makes them again from the big orange cones).
 void write_eufs_csv(const Track& track, const std::filesystem::path& file);

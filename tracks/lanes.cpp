@@ -34,6 +34,8 @@ constexpr double kCloseGapM = 6.0;
 /// ... and it is at least this long and has this many cones.
 constexpr double kMinClosedLengthM = 30.0;
 constexpr size_t kMinClosedCones = 6;
+/// A shorter lane closes only when it turns at least this far round (a small test ring), rad.
+constexpr double kMinRingTurnRad = 1.5 * std::numbers::pi;
 /// Big orange cones closer than this belong to the same gate group.
 constexpr double kGateGroupRadiusM = 6.0;
 
@@ -151,7 +153,16 @@ bool closes(const std::vector<Vec2>& pts) {
     length += steps.back();
   }
   const double gap = (pts.back() - pts.front()).norm();
-  return length >= kMinClosedLengthM && gap <= std::max(kCloseGapM, 1.5 * median(steps));
+  if (gap > std::max(kCloseGapM, 1.5 * median(steps))) return false;
+
+  // long enough to be a circuit, or a small ring that turns all the way round (a team's test
+  // circle): a short open lane does neither
+  double turned = 0.0;
+  for (size_t i = 0; i + 2 < pts.size(); ++i) {
+    const Vec2 a = pts[i + 1] - pts[i], b = pts[i + 2] - pts[i + 1];
+    turned += std::atan2(core::cross(a, b), a.dot(b));
+  }
+  return length >= kMinClosedLengthM || std::abs(turned) > kMinRingTurnRad;
 }
 
 // slots cones the walk stepped over between two chained neighbours when the detour is small;
@@ -297,9 +308,13 @@ void rebuild_lanes(Track& track) {
     track.warnings.push_back(std::to_string(left_out_yellow.size()) +
                              " yellow cone(s) could not be chained into the right lane");
 
-  // a circuit when both lanes close; open lanes continue through orange cones in line
-  track.closed =
-      !left.empty() && !right.empty() && lane_closes(track, left) && lane_closes(track, right);
+  // a circuit when both lanes close; open lanes continue through orange cones in line, and
+  // lanes whose ends those orange cones join are a circuit too (big orange cones standing in the
+  // boundary lines at the start/finish leave a gap of two cone spacings in the coloured lanes)
+  auto both_close = [&] {
+    return !left.empty() && !right.empty() && lane_closes(track, left) && lane_closes(track, right);
+  };
+  track.closed = both_close();
   if (!track.closed) {
     std::vector<int> pool = ids_of(track, ConeClass::kOrangeSmall);
     const std::vector<int> big = ids_of(track, ConeClass::kOrangeBig);
@@ -307,6 +322,7 @@ void rebuild_lanes(Track& track) {
     std::vector<bool> pool_used(pool.size(), false);
     extend_with_orange(track, left, pool, pool_used);
     extend_with_orange(track, right, pool, pool_used);
+    track.closed = both_close();
   }
   track.left_lane = std::move(left);
   track.right_lane = std::move(right);
@@ -346,11 +362,14 @@ void orient_lanes(Track& track) {
 }
 
 Vec2 left_direction_at(const Track& track, const Vec2& p) {
-  // from the nearest right-lane cone to the nearest left-lane cone
+  // from the nearest point of the right lane to the nearest point of the left lane (points
+  // of the polylines, not cones: across a gap such as the start/finish gate the nearest cones
+  // may stand round the corner on either side)
   const std::vector<Vec2> left = track.lane_points(track.left_lane);
   const std::vector<Vec2> right = track.lane_points(track.right_lane);
   if (!left.empty() && !right.empty()) {
-    const Vec2 d = left[nearest_index(left, p)] - right[nearest_index(right, p)];
+    const Vec2 d =
+        nearest_on_polyline(p, left, track.closed) - nearest_on_polyline(p, right, track.closed);
     if (d.norm() > 1e-9) return d.normalized();
   }
 

@@ -111,6 +111,24 @@ Vec2 intersection_point(const Vec2& a1, const Vec2& a2, const Vec2& b1, const Ve
   return a1 + t * r;
 }
 
+// p on the segment from s1 towards s2, its end s2 excluded
+bool on_segment_from(const Vec2& p, const Vec2& s1, const Vec2& s2) {
+  if (p == s1) return true;
+  const Vec2 d = s2 - s1;
+  const double along = d.dot(p - s1);
+  return core::cross(d, p - s1) == 0.0 && along > 0.0 && along < d.squaredNorm();
+}
+
+// where two lane segments cross or touch, if they do: a proper crossing, or the start of one
+// lying on the other. Each segment counts with its start cone and without its end cone, so
+// lanes that cross exactly at a cone are reported once, by the segments leaving it
+std::optional<Vec2> segments_meet(const Vec2& a1, const Vec2& a2, const Vec2& b1, const Vec2& b2) {
+  if (core::segments_intersect(a1, a2, b1, b2)) return intersection_point(a1, a2, b1, b2);
+  if (on_segment_from(a1, b1, b2)) return a1;
+  if (on_segment_from(b1, a1, a2)) return b1;
+  return std::nullopt;
+}
+
 // ---------------------------------------------------------------------------------------------
 // the centre line as the checks see it
 
@@ -451,13 +469,13 @@ void check_crossings(const Track& track, const Lanes& lanes, std::vector<Violati
     for (size_t j = 0; j < nr; ++j) {
       const Vec2& b1 = lanes.right[j];
       const Vec2& b2 = lanes.right[(j + 1) % lanes.right.size()];
-      if (!core::segments_intersect(a1, a2, b1, b2)) continue;
+      const std::optional<Vec2> at = segments_meet(a1, a2, b1, b2);
+      if (!at) continue;
       const auto [l1, l2] = ids(track.left_lane, i);
       const auto [r1, r2] = ids(track.right_lane, j);
-      out.push_back(
-          make_violation("boundary_crossing",
-                         format("left segment %d-%d crosses right segment %d-%d", l1, l2, r1, r2),
-                         intersection_point(a1, a2, b1, b2)));
+      out.push_back(make_violation(
+          "boundary_crossing",
+          format("left segment %d-%d crosses right segment %d-%d", l1, l2, r1, r2), *at));
     }
   }
 
@@ -472,13 +490,14 @@ void check_crossings(const Track& track, const Lanes& lanes, std::vector<Violati
         const Vec2& a2 = (*pts)[(i + 1) % pts->size()];
         const Vec2& b1 = (*pts)[j];
         const Vec2& b2 = (*pts)[(j + 1) % pts->size()];
-        if (!core::segments_intersect(a1, a2, b1, b2)) continue;
+        const std::optional<Vec2> at = segments_meet(a1, a2, b1, b2);
+        if (!at) continue;
         const auto [a_from, a_to] = ids(*lane, i);
         const auto [b_from, b_to] = ids(*lane, j);
         out.push_back(make_violation("boundary_self_crossing",
                                      format("%s segment %d-%d crosses %s segment %d-%d", side,
                                             a_from, a_to, side, b_from, b_to),
-                                     intersection_point(a1, a2, b1, b2)));
+                                     *at));
       }
     }
   }

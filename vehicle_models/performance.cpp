@@ -20,8 +20,8 @@ PerformanceEnvelope PerformanceEnvelope::of(const VehicleParams& p, double grip_
   double driven_share = 0.0;
   if (p.max_torque_front_nm > 0.0) driven_share += p.front_mass_fraction;
   if (p.max_torque_rear_nm > 0.0) driven_share += 1.0 - p.front_mass_fraction;
-  e.max_drive_force_n = std::min(e.max_drive_force_n,
-                                 driven_share * e.friction * p.mass_kg * kGravityMps2);
+  e.max_drive_force_n =
+      std::min(e.max_drive_force_n, driven_share * e.friction * p.mass_kg * kGravityMps2);
   return e;
 }
 

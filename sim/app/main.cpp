@@ -29,6 +29,14 @@ CLI::Option* add_event_option(CLI::App* cmd, std::string& value, const std::stri
       ->check(CLI::IsMember({"skidpad", "acceleration", "autocross", "trackdrive"}));
 }
 
+// an output file must go into a folder that exists: bad input otherwise, not a failed tool
+void check_output_folder(const fs::path& file) {
+  const fs::path folder = file.parent_path();
+  std::error_code ec;
+  if (!folder.empty() && !fs::is_directory(folder, ec))
+    throw conesim::core::InputError(file.string(), 0, "cannot write: no folder " + folder.string());
+}
+
 std::optional<EventType> parse_event(const std::string& name) {
   if (name.empty()) return std::nullopt;
   return conesim::tracks::event_from_string(name);
@@ -112,6 +120,7 @@ void add_track_commands(CLI::App& app, int& status) {
     add_event_option(cmd, *event, "Mark violations of this event's rules (default: recognised)");
     cmd->callback([=] {
       const auto t = conesim::tracks::read_track(*file);
+      check_output_folder(*out);
       conesim::sim::plot_track(t, parse_event(*event), *out);
     });
   }
@@ -146,15 +155,17 @@ void add_run_command(CLI::App& app, int& status) {
       ->check(CLI::Range(1, 1000000));
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;
+    // every input is checked before the run folder is touched
     const fs::path file = sim::find_scenario(*scenario);
-    std::vector<std::string> overrides = *sets;
-    if (seed_opt->count() > 0) overrides.insert(overrides.begin(), "seed=" + std::to_string(*seed));
-    sim::Scenario s = sim::load_scenario(file, overrides);
+    sim::Scenario s = sim::load_scenario(
+        file, *sets, seed_opt->count() > 0 ? std::optional<uint64_t>(*seed) : std::nullopt);
+    for (const std::string& w : s.warnings) std::cerr << "warning: " << w << "\n";
     if (!track->empty()) {
       s.track.file = *track;
       s.track.generate_seed.reset();
     }
     const conesim::tracks::Track t = sim::scenario_track(s);
+    for (const std::string& w : t.warnings) std::cerr << "warning: " << w << "\n";
     // a circuit this car cannot drive is refused before any run folder is made
     if (s.driver.check_drivable) {
       if (const std::string why = sim::drivability_problem(s, t); !why.empty())
@@ -167,10 +178,12 @@ void add_run_command(CLI::App& app, int& status) {
     options.plot = !*no_plot;
     options.dump.sensors = {dump->begin(), dump->end()};
     options.dump.every = *dump_every;
-    if (out->empty()) {
-      options.out_dir = sim::make_run_dir("runs", s.name);
-    } else {
-      options.out_dir = *out;
+    try {
+      options.out_dir = out->empty() ? sim::make_run_dir("runs", s.name) : *out;
+      fs::create_directories(options.out_dir);
+    } catch (const fs::filesystem_error& e) {
+      throw conesim::core::InputError(out->empty() ? "runs" : "--out " + out->string(), 0,
+                                      "cannot create the run folder: " + e.code().message());
     }
     // the live progress line only on a terminal
     const bool tty = isatty(STDERR_FILENO);
@@ -193,31 +206,76 @@ void add_run_command(CLI::App& app, int& status) {
                 ref.final_time_s, ref.cones_hit.size(), ref.off_course,
                 r.sim_time_s / std::max(r.wall_time_s, 1e-9));
     for (const auto& f : r.failures) std::printf("fail: %s\n", f.c_str());
+    for (const auto& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
     std::printf("%s\n", options.out_dir.string().c_str());
     status = r.passed ? 0 : 1;
   });
 }
 
 // `conesim regress ...`
-void add_regress_command(CLI::App& app, int& status, const char* argv0) {
-  auto* cmd = app.add_subcommand("regress", "Run the shipped scenarios over several seeds");
-  auto jobs = std::make_shared<int>(2);
-  auto scenarios = std::make_shared<std::vector<std::string>>();
-  auto out = std::make_shared<fs::path>();
-  cmd->add_option("SCENARIO", *scenarios, "Scenarios to run (default: all four events)");
-  cmd->add_option("--jobs,-j", *jobs, "Runs at once")->check(CLI::Range(1, 64));
-  cmd->add_option("--out", *out, "Folder of the runs (default runs/regress-<UTC stamp>)");
+void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
+  auto* cmd = app.add_subcommand(
+      "regress",
+      "Run scenarios x tracks x seeds in parallel processes; write summary.json, junit.xml and "
+      "summary.html. Exit 0 when every run passed (and nothing regressed against --baseline), "
+      "1 when not, 2 for bad input");
+  auto o = std::make_shared<conesim::sim::RegressOptions>();
+  auto seeds = std::make_shared<std::string>();
+  auto generated = std::make_shared<std::string>();
+  auto baseline = std::make_shared<fs::path>();
+  auto no_plot = std::make_shared<bool>(false);
+  o->jobs = std::max(1, static_cast<int>(sysconf(_SC_NPROCESSORS_ONLN)));
+  cmd->add_option("SCENARIO", o->scenarios,
+                  "Scenarios to run (default: the shipped events and GraphSLAM scenarios; on "
+                  "given tracks, each track's own event)");
+  cmd->add_option("--track", o->track_files, "Run on this track file (repeatable)");
+  cmd->add_option("--tracks", o->track_sets,
+                  "A folder of track files, a list file (one path a line), or `corpus` (the "
+                  "public layouts shipped in tests/data/tracks); repeatable");
+  cmd->add_option("--generated", *generated,
+                  "N[:PROFILE]: also N generated circuits, seeds 1..N (`conesim track generate "
+                  "--event trackdrive`, with --profile PROFILE when given)");
+  cmd->add_option("--seeds", *seeds, "Seeds of every run: 1,2,3 or 1-5 (default: per scenario)");
+  cmd->add_option("--set", o->sets, "Override a scenario value in every run: key.path=value");
+  cmd->add_option("--jobs,-j", o->jobs, "Runs at once (default: the number of cores)")
+      ->check(CLI::Range(1, 256));
+  cmd->add_option("--out", o->out_dir, "Folder of the runs (default runs/regress-<UTC stamp>)");
+  cmd->add_option("--baseline", *baseline,
+                  "A stored summary.json: exit 1 on a regression beyond the noise");
+  cmd->add_flag("--no-plot", *no_plot, "Runs draw no pictures (faster; report.html has none)");
+  auto list = std::make_shared<bool>(false);
+  cmd->add_flag("--list", *list, "Print the runs (id and folder) and stop: nothing runs");
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;
-    for (const auto& name : *scenarios) sim::find_scenario(name);  // fail early on a typo
-    const fs::path dir = out->empty() ? sim::make_run_dir("runs", "regress") : *out;
+    // the options, checked before any run starts
+    if (!seeds->empty()) o->seeds = sim::parse_seeds(*seeds);
+    if (!generated->empty()) {
+      const size_t colon = generated->find(':');
+      const std::string count = generated->substr(0, colon);
+      if (count.empty() || count.find_first_not_of("0123456789") != std::string::npos ||
+          count.size() > 5)
+        throw conesim::core::InputError("--generated", 0,
+                                        "expected N or N:PROFILE, got '" + *generated + "'");
+      o->generated = std::stoi(count);
+      if (colon != std::string::npos) o->generated_profile = generated->substr(colon + 1);
+    }
+    if (!baseline->empty()) o->baseline = *baseline;
+    o->plot = !*no_plot;
+    for (int i = 0; i < argc; ++i) o->command_line += (i ? " " : "") + std::string(argv[i]);
+    if (o->out_dir.empty()) o->out_dir = sim::make_run_dir("runs", "regress");
     std::error_code ec;
     fs::path self = fs::read_symlink("/proc/self/exe", ec);
-    if (ec) self = fs::absolute(argv0);
-    const int failed =
-        sim::run_regression(self, sim::default_regression(*scenarios), *jobs, dir, std::cout);
-    std::cout << dir.string() << "\n";
-    status = failed == 0 ? 0 : 1;
+    if (ec) self = fs::absolute(argv[0]);
+    if (*list) {
+      const sim::RegressionPlan plan = sim::plan_regression(self, *o);
+      for (const auto& r : plan.runs) std::cout << r.id() << "  " << r.dir.string() << "\n";
+      for (const auto& t : plan.skipped)
+        std::cout << "skipped " << t.track << ": " << t.reason << "\n";
+      std::cout << plan.runs.size() << " runs\n";
+      return;
+    }
+    status = sim::run_regression(self, *o, std::cout, std::cerr);
+    std::cout << o->out_dir.string() << "\n";
   });
 }
 
@@ -274,20 +332,29 @@ int main(int argc, char** argv) {
   int status = 0;
   add_track_commands(app, status);
   add_run_command(app, status);
-  add_regress_command(app, status, argv[0]);
+  add_regress_command(app, status, argc, argv);
   add_vehicle_commands(app);
   add_bench_commands(app);
 
+  // exit 0 (done, passed), 1 (a run that did not pass, rule violations with --strict), 2 (bad
+  // input: the message names the file and line, the key or the option) and 3 only for an
+  // internal error, a bug to report
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version end the parse with success; every mistake on the command line is
+    // bad input
+    const int code = app.exit(e);
+    return code == 0 ? conesim::sim::kExitOk : conesim::sim::kExitBadInput;
   } catch (const conesim::core::InputError& e) {
     std::cerr << e.what() << "\n";
     return conesim::sim::kExitBadInput;
   } catch (const std::exception& e) {
-    std::cerr << "conesim: " << e.what() << "\n";
-    return 3;
+    std::cerr << "conesim: internal error: " << e.what() << "\n";
+    return conesim::sim::kExitInternalError;
+  } catch (...) {
+    std::cerr << "conesim: internal error: an exception of unknown type\n";
+    return conesim::sim::kExitInternalError;
   }
   return status;
 }

@@ -14,5 +14,20 @@ TEST(PhysicsSteps, RatesMustFireOnEveryPeriod) {
     EXPECT_FALSE(whole_physics_steps(hz)) << hz;
 }
 
+TEST(FromSeconds, RoundsAndSaturatesInsteadOfOverflowing) {
+  EXPECT_EQ(from_seconds(1.5), 1'500'000);
+  EXPECT_EQ(from_seconds(-0.0000014), -1);
+  // a referee timeout of 1e13 s is 1e19 us, past the 64-bit clock: the largest time, not
+  // undefined behaviour (issue 20 item 2)
+  EXPECT_EQ(from_seconds(1e13), std::numeric_limits<TimeUs>::max());
+  EXPECT_EQ(from_seconds(-1e13), std::numeric_limits<TimeUs>::min());
+  EXPECT_EQ(from_seconds(1e300), std::numeric_limits<TimeUs>::max());
+  EXPECT_EQ(from_seconds(std::numeric_limits<double>::infinity()),
+            std::numeric_limits<TimeUs>::max());
+  EXPECT_EQ(from_seconds(std::numeric_limits<double>::quiet_NaN()), 0);
+  // the largest time that fits still converts exactly enough
+  EXPECT_GT(from_seconds(9.2e12), 9'199'999'999'999'999'000);
+}
+
 }  // namespace
 }  // namespace conesim::core

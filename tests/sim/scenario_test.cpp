@@ -108,6 +108,102 @@ TEST_F(ScenarioFile, BadInputNamesFileLineAndKey) {
   EXPECT_NE(error_of(slam + "slam_latency_s: .nan\n").find("slam_latency_s"), std::string::npos);
 }
 
+// issue 20 item 1: a whole number is read exactly and never narrowed or wrapped
+TEST_F(ScenarioFile, WholeNumbersOutOfRangeAreRefusedNotWrapped) {
+  const std::string laps = error_of("event: trackdrive\ndriver: {trackdrive_laps: 4294967297}\n");
+  EXPECT_NE(laps.find("s.yaml:2: driver.trackdrive_laps: expected a whole number"),
+            std::string::npos)
+      << laps;
+  const std::string width =
+      error_of("event: skidpad\nsensors:\n  camera: {width_px: 4294967936}\n");
+  EXPECT_NE(width.find("s.yaml:3: sensors.camera.width_px: expected a whole number"),
+            std::string::npos)
+      << width;
+  EXPECT_NE(error_of("event: skidpad\npass: {max_cones_hit: 2.5}\n").find("pass.max_cones_hit"),
+            std::string::npos);
+  // within range: digits, or a whole number written as a float
+  const Scenario s = load_scenario(write("event: trackdrive\ndriver: {trackdrive_laps: 3.0}\n"));
+  EXPECT_EQ(s.driver.trackdrive_laps, 3);
+  // wider than the buffer the camera renders into
+  EXPECT_NE(error_of("event: skidpad\nsensors: {camera: {width_px: 2000}}\n")
+                .find("sensors.camera.width_px: expected at most 1280"),
+            std::string::npos);
+}
+
+// issue 20 item 7: every 64-bit seed reads exactly; command-line values are blamed on the option
+TEST_F(ScenarioFile, SeedsReadExactlyAndOptionsAreNamed) {
+  const fs::path p = write("event: skidpad\n");
+  EXPECT_EQ(load_scenario(p, {}, 9007199254740993ull).seed, 9007199254740993ull);
+  EXPECT_EQ(load_scenario(p, {"seed=18446744073709551615"}).seed, 18446744073709551615ull);
+  EXPECT_EQ(load_scenario(write("event: skidpad\nseed: 9007199254740993\n")).seed,
+            9007199254740993ull);
+  // a bad --set value names --set and the key, not the file's first line
+  const std::string bad_seed = error_of("event: skidpad\n", {"seed=18446744073709551616"});
+  EXPECT_EQ(bad_seed.rfind("--set: seed: expected a whole number", 0), 0u) << bad_seed;
+  const std::string bad_speed = error_of("event: skidpad\n", {"driver.fast_speed_mps=-1"});
+  EXPECT_EQ(bad_speed.rfind("--set: driver.fast_speed_mps: expected", 0), 0u) << bad_speed;
+  const std::string empty = error_of("event: skidpad\n", {"driver.fast_speed_mps="});
+  EXPECT_NE(empty.find("--set: driver.fast_speed_mps: expected a value after '=', got nothing"),
+            std::string::npos)
+      << empty;
+  // the file's own mistakes still name the file and line of the key
+  const std::string in_file = error_of("event: skidpad\ndriver:\n  fast_speed_mps: -1\n");
+  EXPECT_NE(in_file.find("s.yaml:3: driver.fast_speed_mps: expected"), std::string::npos)
+      << in_file;
+}
+
+// issue 20 item 3: the referee's values are checked with the scenario, naming the key
+TEST_F(ScenarioFile, RefereeValuesAreCheckedWithTheScenario) {
+  EXPECT_NE(error_of("event: skidpad\n", {"referee.cone_penalty_s=-5"})
+                .find("--set: referee.cone_penalty_s: expected a number >= 0"),
+            std::string::npos);
+  EXPECT_NE(error_of("event: skidpad\nreferee:\n  stuck_time_s: 0\n")
+                .find("s.yaml:3: referee.stuck_time_s: expected a number > 0"),
+            std::string::npos);
+  // item 2: a timeout past what a run can last
+  EXPECT_NE(error_of("event: skidpad\n", {"referee.timeout_skidpad_s=1e13"})
+                .find("--set: referee.timeout_skidpad_s: expected at most 100000 s"),
+            std::string::npos);
+}
+
+// issue 20 item 5: the name becomes a folder under runs/, so it must be a plain name
+TEST_F(ScenarioFile, NameMustBeAPlainFolderName) {
+  for (const char* name : {"/tmp/elsewhere", "../../x", "a/b", "..", "''", "\"a\\tb\""}) {
+    const std::string e = error_of(std::string("name: ") + name + "\nevent: skidpad\n");
+    EXPECT_NE(e.find("s.yaml:1: name: expected a plain name"), std::string::npos)
+        << name << ": " << e;
+  }
+  EXPECT_NE(error_of("event: skidpad\n", {"name=../x"}).find("--set: name: expected a plain"),
+            std::string::npos);
+  EXPECT_EQ(load_scenario(write("name: my-run_2.b\nevent: skidpad\n")).name, "my-run_2.b");
+}
+
+// issue 20 items 6 and 8: complex keys are bad input; a key given twice is a warning with its
+// lines; a sensor switched off cannot feed the perception that needs it
+TEST_F(ScenarioFile, ComplexKeysDuplicatesAndContradictions) {
+  EXPECT_NE(error_of("event: skidpad\n? [a, b]\n: 1\n").find("s.yaml:2: top level: expected key"),
+            std::string::npos);
+  const Scenario s = load_scenario(write("event: skidpad\nevent: acceleration\n"));
+  EXPECT_EQ(core::to_string(s.event), "acceleration");
+  ASSERT_EQ(s.warnings.size(), 1u);
+  EXPECT_NE(s.warnings[0].find("s.yaml:2: event: given again (also on line 1)"), std::string::npos)
+      << s.warnings[0];
+  // --set reaches the key that counts
+  const Scenario d = load_scenario(
+      write("event: skidpad\ndriver: {fast_speed_mps: 5}\ndriver: {fast_speed_mps: 6}\n"),
+      {"driver.fast_speed_mps=7"});
+  EXPECT_DOUBLE_EQ(d.driver.fast_speed_mps, 7.0);
+  EXPECT_NE(error_of("event: skidpad\nperception: lidar\nsensors: {lidar: {enabled: false}}\n")
+                .find("s.yaml:3: sensors.lidar.enabled: false contradicts perception: lidar"),
+            std::string::npos);
+  EXPECT_NE(error_of("event: skidpad\nperception: stereo\n", {"sensors.camera.enabled=false"})
+                .find("--set: sensors.camera.enabled: false contradicts perception: stereo"),
+            std::string::npos);
+  EXPECT_NE(error_of("event: skidpad\nperception: fused\n", {"sensors.camera.enabled=no"})
+                .find("sensors.camera.enabled"),
+            std::string::npos);
+}
+
 TEST_F(ScenarioFile, UnknownScenarioNameListsTheShippedOnes) {
   try {
     find_scenario("trackdirve");

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <numbers>
 #include <random>
 #include <set>
 #include <string>
@@ -477,11 +478,98 @@ TEST(WriteEufsCsv, WritesTheHeaderCarStartAndTagNames) {
   std::getline(in, a);
   std::getline(in, b);
   std::getline(in, c);
-  EXPECT_EQ(header, "tag,x,y,direction,x_variance,y_variance,xy_covariance,id");
-  EXPECT_EQ(start, "car_start,1.5,-2.0,0.25,0.0,0.0,0.0,");
+  EXPECT_EQ(header, "tag,x,y,direction,x_variance,y_variance,xy_covariance,id,lane");
+  EXPECT_EQ(start, "car_start,1.5,-2.0,0.25,0.0,0.0,0.0,,open");
   EXPECT_THAT(a, ::testing::StartsWith("orange,"));
   EXPECT_THAT(b, ::testing::StartsWith("big_orange,"));
   EXPECT_THAT(c, ::testing::StartsWith("unknown,"));
+}
+
+// a figure eight of Gerono (x = a sin t, y = 0.66 a sin t cos t) with cones every 3 m each side
+// of the centre line, none within 8 m of the crossing: EUFS CSV text, rows along the course
+std::string figure_eight_csv() {
+  constexpr int kSamples = 4000;
+  const double a = 60.0, b = 0.66 * a, half_width = 1.5, spacing = 3.0;
+  std::vector<Vec2> line;
+  for (int i = 0; i < kSamples; ++i) {
+    const double t = 2.0 * std::numbers::pi * i / kSamples;
+    line.emplace_back(a * std::sin(t), b * std::sin(t) * std::cos(t));
+  }
+  std::vector<double> s{0.0};
+  for (int i = 1; i <= kSamples; ++i)
+    s.push_back(s.back() + (line[i % kSamples] - line[i - 1]).norm());
+  std::string csv = "tag,x,y,direction,x_variance,y_variance,xy_covariance\n";
+  const int cones = static_cast<int>(s.back() / spacing);
+  for (int k = 0, j = 0; k < cones; ++k) {
+    const double at = k * s.back() / cones;
+    while (s[j + 1] < at) ++j;
+    const Vec2 p0 = line[j], p1 = line[(j + 1) % kSamples];
+    const Vec2 p = p0 + (at - s[j]) / (s[j + 1] - s[j]) * (p1 - p0);
+    const Vec2 normal = Vec2(-(p1 - p0).y(), (p1 - p0).x()).normalized();
+    if (p.norm() < 8.0) continue;
+    for (const auto& [tag, side] : {std::pair{"blue", 1.0}, std::pair{"yellow", -1.0}}) {
+      // millimetres, as surveyed layouts give them
+      const Vec2 c = p + side * half_width * normal;
+      char row[80];
+      std::snprintf(row, sizeof row, "%s,%.3f,%.3f,0,0,0,0\n", tag, c.x(), c.y());
+      csv += row;
+    }
+  }
+  return csv;
+}
+
+TEST(RoundTrip, CsvYamlCsvKeepsTheLanesAndTheClosedFlagOfAFigureEight) {
+  // the lanes of a figure eight cannot be told from the colours alone: conesim's CSV carries
+  // them (issue 20 item 10: the round trip turned the closed track into an open one)
+  TempDir dir;
+  write_file(dir / "eight.csv", figure_eight_csv());
+  const Track first = read_track(dir / "eight.csv");
+  ASSERT_TRUE(first.closed);
+  write_track(first, dir / "eight.yaml");
+  const Track yaml = read_track(dir / "eight.yaml");
+  write_track(yaml, dir / "eight2.csv");
+  const Track again = read_track(dir / "eight2.csv");
+  EXPECT_TRUE(yaml.closed);
+  EXPECT_TRUE(again.closed);
+  EXPECT_EQ(again.left_lane.size(), first.left_lane.size());
+  EXPECT_EQ(again.right_lane.size(), first.right_lane.size());
+  // and once more: the files are the same
+  write_track(again, dir / "eight3.csv");
+  std::ifstream f2(dir / "eight2.csv"), f3(dir / "eight3.csv");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(f2), {}),
+            std::string(std::istreambuf_iterator<char>(f3), {}));
+}
+
+TEST(ReadTrack, ConesimCsvLaneColumnIsChecked) {
+  const std::string header = "tag,x,y,direction,x_variance,y_variance,xy_covariance,id,lane\n";
+  try {
+    parse_track(header + "blue,1,2,0,0,0,0,0,middle\n", TrackFormat::kEufsCsv, "l.csv");
+    FAIL() << "a bad lane was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("l.csv:2: lane: expected left, right"), std::string::npos)
+        << e.what();
+  }
+}
+
+// a UTF-8 byte-order mark before the header is no data (issue 20 item 10)
+TEST(ReadTrack, ByteOrderMarkIsIgnored) {
+  const Track t = parse_track(
+      "\xEF\xBB\xBFtag,x,y,direction,x_variance,y_variance,xy_covariance\n"
+      "blue,0,2,0,0,0,0\nblue,5,2,0,0,0,0\nyellow,0,-2,0,0,0,0\n",
+      TrackFormat::kEufsCsv, "bom.csv");
+  EXPECT_EQ(t.cones.size(), 3u);
+}
+
+// a key given twice is no longer silent (issue 20 item 8)
+TEST(ReadTrack, KeyGivenTwiceIsAWarningWithBothLines) {
+  const Track t = parse_track(
+      "cones_left: [[0, 2], [5, 2]]\ncones_right: [[0, -2], [5, -2]]\ncones_left: [[10, 2]]\n",
+      TrackFormat::kFssimYaml, "twice.yaml");
+  bool warned = false;
+  for (const std::string& w : t.warnings)
+    warned = warned ||
+             w.find("twice.yaml:3: cones_left: given again (also on line 1)") != std::string::npos;
+  EXPECT_TRUE(warned) << ::testing::PrintToString(t.warnings);
 }
 
 TEST(WriteTrack, UnknownExtensionIsAnInputError) {

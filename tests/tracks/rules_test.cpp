@@ -179,6 +179,31 @@ TEST(Rules, ConeAcrossTheOtherBoundaryIsACrossing) {
   }
 }
 
+TEST(Rules, LanesCrossingExactlyAtAConeAreACrossing) {
+  // the yellow cone nearest a blue one of the first straight moved exactly onto it: the right
+  // lane meets the left lane only at segment ends, and is reported all the same
+  Track oval = make_oval(60.0, 15.0);
+  const Vec2 blue =
+      oval.cones[static_cast<size_t>(oval.left_lane[10])].position;  // ids are indices
+  int nearest = oval.right_lane.front();
+  for (int id : oval.right_lane)
+    if ((oval.cones[static_cast<size_t>(id)].position - blue).norm() <
+        (oval.cones[static_cast<size_t>(nearest)].position - blue).norm())
+      nearest = id;
+  oval.cones[static_cast<size_t>(nearest)].position = blue;
+  const std::vector<Violation> all = check_rules(oval, EventType::kTrackdrive);
+  const std::vector<Violation> crossings = of_rule(all, "boundary_crossing");
+  ASSERT_EQ(crossings.size(), 1u) << describe(all);  // once, at the segments leaving the cone
+  EXPECT_NEAR((crossings[0].where - blue).norm(), 0.0, 1e-9);
+
+  // a blue cone moved exactly onto another of its lane: the lane runs through itself there
+  Track loop = make_oval(60.0, 15.0);
+  loop.cones[static_cast<size_t>(loop.left_lane[20])].position =
+      loop.cones[static_cast<size_t>(loop.left_lane[5])].position;
+  EXPECT_GE(of_rule(check_rules(loop, EventType::kTrackdrive), "boundary_self_crossing").size(),
+            1u);
+}
+
 TEST(Rules, SwappedConesMakeASelfCrossing) {
   // swap two blue cones of the first half circle in the lane order: chords that cross
   Track oval = make_oval(60.0, 15.0);

@@ -1,0 +1,218 @@
+#include "sim/regress.hpp"
+
+#include <gtest/gtest.h>
+
+#include <sstream>
+
+#include "core/error.hpp"
+
+namespace conesim::sim {
+namespace {
+
+using nlohmann::json;
+
+// a metrics.json as `conesim run` writes it, with the events the referee reports
+json metrics(bool passed, double best_lap_s) {
+  json m = {
+      {"scenario", "trackdrive"},
+      {"event", "trackdrive"},
+      {"track", "FSG19"},
+      {"seed", 1},
+      {"completed", true},
+      {"dnf_reason", ""},
+      {"laps", 2},
+      {"lap_times_s", {best_lap_s + 3.0, best_lap_s}},
+      {"penalties", {{"cones_hit", passed ? 0 : 1}, {"off_course", 0}}},
+      {"final_time_s", 2 * best_lap_s + 3.0},
+      {"wall_time_s", 4.0},
+      {"real_time_factor", 12.5},
+      {"lap_time_bound_s", best_lap_s / 1.25},
+      {"passed", passed},
+      {"pass_failures", json::array()},
+      {"slam",
+       {{"graph", {{"map_rmse_m", 0.05}, {"ate_rmse_m", 0.04}, {"da_correct_fraction", 0.998}}}}},
+      {"perception", {{"mode", "cone_sensor"}}},
+      {"events", json::array()}};
+  if (!passed) {
+    m["pass_failures"] = {"1 cones hit, at most 0 allowed"};
+    m["events"] = {{{"kind", "cone_hit"},
+                    {"t_s", 31.25},
+                    {"lap", 2},
+                    {"x_m", 12.34},
+                    {"y_m", -4.5},
+                    {"yaw_rad", 0.1},
+                    {"reason", "hit blue cone 17"},
+                    {"penalty_s", 2.0},
+                    {"cone_id", 17},
+                    {"cone_class", "blue"},
+                    {"cone_x_m", 13.0},
+                    {"cone_y_m", -3.9}}};
+  }
+  return m;
+}
+
+RegressionRun run(const std::string& track, unsigned long long seed) {
+  return {"trackdrive", track, "", seed, "trackdrive/" + track + "-s" + std::to_string(seed)};
+}
+
+TEST(Regress, RowCarriesVerdictReasonPlaceAndFigures) {
+  const RunRow r = make_row(run("pacsim/FSG19", 1), metrics(false, 20.0), 1);
+  EXPECT_FALSE(r.passed);
+  ASSERT_EQ(r.reasons.size(), 1u);
+  EXPECT_EQ(r.reasons[0], "1 cones hit, at most 0 allowed");
+  ASSERT_EQ(r.events.size(), 1u);
+  EXPECT_EQ(r.events[0].kind, "cone_hit");
+  EXPECT_DOUBLE_EQ(r.events[0].x_m, 12.34);
+  EXPECT_DOUBLE_EQ(r.best_lap_s, 20.0);
+  EXPECT_NEAR(r.bound_ratio, 1.25, 1e-12);
+  EXPECT_DOUBLE_EQ(r.map_rmse_m, 0.05);
+  EXPECT_EQ(r.id, "trackdrive | pacsim/FSG19 | seed 1");
+}
+
+TEST(Regress, CrashWithoutMetricsFailsWithTheExitAndLogLine) {
+  const RunRow r = make_row(run("x", 1), json(), 134, "terminate called after an exception");
+  EXPECT_FALSE(r.passed);
+  ASSERT_EQ(r.reasons.size(), 1u);
+  EXPECT_NE(r.reasons[0].find("exit 134 (signal 6)"), std::string::npos);
+  EXPECT_NE(r.reasons[0].find("terminate called"), std::string::npos);
+}
+
+TEST(Regress, PassedMetricsButNonZeroExitIsAFailure) {
+  const RunRow r = make_row(run("x", 1), metrics(true, 20.0), 3, "conesim: boom");
+  EXPECT_FALSE(r.passed);
+  EXPECT_EQ(r.reasons.at(0), "exit 3: conesim: boom");
+}
+
+TEST(Regress, DnfHasNoFinalTime) {
+  json m = metrics(false, 20.0);
+  m["completed"] = false;
+  m["final_time_s"] = 0.0;
+  EXPECT_TRUE(std::isnan(make_row(run("x", 1), m, 1).final_time_s));
+}
+
+TEST(Regress, FailedRunSortsFirst) {
+  std::vector<RunRow> rows = {make_row(run("a", 1), metrics(true, 20.0), 0),
+                              make_row(run("b", 1), metrics(true, 20.0), 0),
+                              make_row(run("c", 1), metrics(false, 20.0), 1)};
+  sort_failures_first(rows);
+  EXPECT_EQ(rows[0].track, "c");
+  EXPECT_EQ(rows[1].track, "a");
+  EXPECT_EQ(rows[2].track, "b");
+}
+
+TEST(Regress, RowSurvivesTheJsonRoundTrip) {
+  const RunRow r = make_row(run("pacsim/FSG19", 3), metrics(false, 20.0), 1);
+  const RunRow back = row_from_json(json::parse(row_to_json(r).dump()));
+  EXPECT_EQ(back.id, r.id);
+  EXPECT_EQ(back.passed, r.passed);
+  EXPECT_EQ(back.reasons, r.reasons);
+  EXPECT_DOUBLE_EQ(back.best_lap_s, r.best_lap_s);
+  EXPECT_DOUBLE_EQ(back.map_rmse_m, r.map_rmse_m);
+  EXPECT_EQ(back.cones_hit, 1);
+  EXPECT_EQ(back.events.size(), 1u);
+  EXPECT_TRUE(std::isnan(back.perception_recall));
+}
+
+TEST(Baseline, PassToFailIsARegression) {
+  const std::vector<RunRow> before = {make_row(run("a", 1), metrics(true, 20.0), 0)};
+  std::vector<RunRow> now = {make_row(run("a", 1), metrics(false, 20.0), 1)};
+  const BaselineComparison c = compare_to_baseline(now, before);
+  ASSERT_FALSE(c.regressions.empty());
+  EXPECT_NE(c.regressions[0].find("passed in the baseline, fails now"), std::string::npos);
+  EXPECT_FALSE(now[0].regressions.empty());
+}
+
+TEST(Baseline, LapTimeOnePercentWorseIsNoiseTenPercentIsARegression) {
+  const std::vector<RunRow> before = {make_row(run("a", 1), metrics(true, 30.0), 0)};
+  std::vector<RunRow> one_percent = {make_row(run("a", 1), metrics(true, 30.3), 0)};
+  EXPECT_TRUE(compare_to_baseline(one_percent, before).regressions.empty());
+  std::vector<RunRow> ten_percent = {make_row(run("a", 1), metrics(true, 33.0), 0)};
+  const BaselineComparison c = compare_to_baseline(ten_percent, before);
+  ASSERT_FALSE(c.regressions.empty());
+  EXPECT_NE(c.regressions[0].find("best lap"), std::string::npos);
+  // faster is never a regression
+  std::vector<RunRow> faster = {make_row(run("a", 1), metrics(true, 25.0), 0)};
+  EXPECT_TRUE(compare_to_baseline(faster, before).regressions.empty());
+}
+
+TEST(Baseline, MapRmseOfOneRunWithinNoiseIsNotARegressionBeyondIs) {
+  json m = metrics(true, 20.0);
+  const std::vector<RunRow> before = {make_row(run("a", 1), m, 0)};
+  // 0.05 -> 0.095 m: what a 1e-8 change of a driver setting did to one GraphSLAM run
+  m["slam"]["graph"]["map_rmse_m"] = 0.095;
+  std::vector<RunRow> now = {make_row(run("a", 1), m, 0)};
+  EXPECT_TRUE(compare_to_baseline(now, before).regressions.empty());
+  m["slam"]["graph"]["map_rmse_m"] = 0.12;
+  now = {make_row(run("a", 1), m, 0)};
+  EXPECT_EQ(compare_to_baseline(now, before).regressions.size(), 1u);
+}
+
+TEST(Baseline, MedianMapRmseOverAScenarioCatchesASmallerDrift) {
+  std::vector<RunRow> before, drifted, noisy;
+  for (unsigned long long seed = 1; seed <= 5; ++seed) {
+    json m = metrics(true, 20.0);
+    m["slam"]["graph"]["map_rmse_m"] = 0.03 + 0.001 * seed;
+    before.push_back(make_row(run("a", seed), m, 0));
+    // every run 0.01 m worse: within each run's noise, beyond the median's
+    m["slam"]["graph"]["map_rmse_m"] = 0.04 + 0.001 * seed;
+    drifted.push_back(make_row(run("a", seed), m, 0));
+    // runs shuffled about, the median 0.002 m worse
+    m["slam"]["graph"]["map_rmse_m"] = seed == 3 ? 0.035 : 0.03 + 0.001 * (6 - seed);
+    noisy.push_back(make_row(run("a", seed), m, 0));
+  }
+  const BaselineComparison c = compare_to_baseline(drifted, before);
+  ASSERT_EQ(c.median_regressions.size(), 1u);
+  EXPECT_NE(c.median_regressions[0].find("trackdrive: median SLAM map RMSE over 5 runs"),
+            std::string::npos);
+  for (const RunRow& r : drifted) EXPECT_TRUE(r.regressions.empty());
+  EXPECT_TRUE(compare_to_baseline(noisy, before).regressions.empty());
+  // the medians' testcase fails in junit.xml
+  EXPECT_NE(junit_xml(drifted, 1.0, &c).find("classname=\"baseline\" name=\"medians\""),
+            std::string::npos);
+}
+
+TEST(Baseline, MissingAndNewRunsAreListedNotRegressions) {
+  const std::vector<RunRow> before = {make_row(run("a", 1), metrics(true, 20.0), 0),
+                                      make_row(run("b", 1), metrics(true, 20.0), 0)};
+  std::vector<RunRow> now = {make_row(run("a", 1), metrics(true, 20.0), 0),
+                             make_row(run("c", 1), metrics(true, 20.0), 0)};
+  const BaselineComparison c = compare_to_baseline(now, before);
+  EXPECT_TRUE(c.regressions.empty());
+  ASSERT_EQ(c.missing.size(), 1u);
+  EXPECT_EQ(c.missing[0], "trackdrive | b | seed 1");
+  ASSERT_EQ(c.added.size(), 1u);
+  EXPECT_EQ(c.added[0], "trackdrive | c | seed 1");
+}
+
+TEST(Junit, OneTestcasePerRunWithTheReasonsOnFailures) {
+  std::vector<RunRow> rows = {make_row(run("pacsim/FSG19", 1), metrics(false, 20.0), 1),
+                              make_row(run("a&b<c>", 2), metrics(true, 20.0), 0)};
+  const std::string xml = junit_xml(rows, 12.0);
+  EXPECT_NE(xml.find("tests=\"2\" failures=\"1\""), std::string::npos);
+  EXPECT_NE(xml.find("classname=\"trackdrive\" name=\"pacsim/FSG19 seed 1\""), std::string::npos);
+  EXPECT_NE(xml.find("message=\"1 cones hit, at most 0 allowed\""), std::string::npos);
+  EXPECT_NE(xml.find("hit blue cone 17"), std::string::npos);
+  EXPECT_NE(xml.find("name=\"a&amp;b&lt;c&gt; seed 2\""), std::string::npos);
+}
+
+TEST(Seeds, ListsAndRanges) {
+  EXPECT_EQ(parse_seeds("1,2,3"), (std::vector<unsigned long long>{1, 2, 3}));
+  EXPECT_EQ(parse_seeds("1-4"), (std::vector<unsigned long long>{1, 2, 3, 4}));
+  EXPECT_EQ(parse_seeds("2-3,9"), (std::vector<unsigned long long>{2, 3, 9}));
+  EXPECT_THROW(parse_seeds("a"), core::InputError);
+  EXPECT_THROW(parse_seeds("5-1"), core::InputError);
+  EXPECT_THROW(parse_seeds(""), core::InputError);
+  EXPECT_THROW(parse_seeds("1,,2"), core::InputError);
+}
+
+TEST(Table, EveryFailRowCarriesItsReason) {
+  std::vector<RunRow> rows = {make_row(run("pacsim/FSG19", 1), metrics(false, 20.0), 1)};
+  std::ostringstream out;
+  print_table(rows, out);
+  EXPECT_NE(out.str().find("FAIL"), std::string::npos);
+  EXPECT_NE(out.str().find("    1 cones hit, at most 0 allowed"), std::string::npos);
+  EXPECT_NE(out.str().find("cone_hit lap 2 t 31.2 s at (12.3, -4.5)"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace conesim::sim
