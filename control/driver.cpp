@@ -4,10 +4,12 @@
 #include <cmath>
 #include <optional>
 
+#include "control/drivability.hpp"
 #include "control/lap_line.hpp"
 #include "control/path.hpp"
 #include "control/path_planner.hpp"
 #include "control/pure_pursuit.hpp"
+#include "control/racing_line.hpp"
 #include "control/skidpad_plan.hpp"
 #include "control/speed_profile.hpp"
 #include "control/straight_course.hpp"
@@ -26,6 +28,21 @@ using core::VehicleCommand;
 constexpr double kStoppedSpeedMps = 0.3;
 // the speed target is read this far ahead in time, to make up for the actuator lag, s
 constexpr double kSpeedPreviewS = 0.2;
+// on the circuits the envelope limits the speed profile; the command and braking are capped
+// only this high (the car limits itself), and the lateral acceleration this high, m/s^2
+constexpr double kCircuitLongitudinalCapMps2 = 15.0;
+constexpr double kCircuitLateralCapMps2 = 30.0;
+// the path's curvature is read this far ahead in time for the steering lag, s, and averaged
+// over this span either side, metres
+constexpr double kSteerPreviewS = 0.12;
+// on the racing line (fast laps): a shorter preview and stiffer error dynamics (rad/m, capped
+// at rad/s). Measured: the kinematic loop's tracking error on generated circuits fell from
+// 0.27 m (0.12 s, 0.5/m, 3/s) to 0.10-0.25 m, the MuJoCo car's footprint clearance on PacSim
+// FSE22 rose from 0.14 to 0.30 m; the same gains while exploring hit a cone on FSE22 lap 1
+constexpr double kFastSteerPreviewS = 0.08;
+constexpr double kFastFrequencyPerM = 0.6;
+constexpr double kFastMaxFrequencyRps = 4.0;
+constexpr double kCurvatureSpanM = 1.0;
 // the feed-forward acceleration is the profile's slope over this distance, metres
 constexpr double kFeedForwardSpanM = 1.0;
 // cones within this distance of the car feed the local planner, metres
@@ -38,8 +55,11 @@ constexpr double kExploreHorizonM = 25.0;
 constexpr double kMinLocalPathM = 4.0;
 // share of the braking limit planned for stopping at the end of the known path
 constexpr double kEndOfPathDecelShare = 0.5;
-// a lap counts only after this distance since the previous one (or the start), metres
-constexpr double kMinLapDistanceM = 100.0;
+// a lap counts only after this distance since the previous one (or the start), metres (the
+// racing line of eufs peanut is under 100 m)
+constexpr double kMinLapDistanceM = 50.0;
+// a steering command this share of full lock or more slows the car to the tight-turn speed
+constexpr double kSteerSaturationShare = 0.9;
 // the lap line is searched among the big orange cones while the car is this close to the
 // start (by distance travelled), metres
 constexpr double kLapLineSearchOdometerM = 40.0;
@@ -124,6 +144,11 @@ struct Driver::Impl {
   std::vector<MapCone> prior_map;
   PlannerParams planner;
   PurePursuitParams pursuit;
+  TrackerParams tracker;
+  TrackerParams fast_tracker;
+  // the car's limits at the grip fraction planned for, and its footprint with the margin
+  vehicle_models::PerformanceEnvelope envelope;
+  Footprint footprint;
 
   // mission state
   DriverStatus status;
@@ -157,6 +182,21 @@ struct Driver::Impl {
       : event(e), params(p), vehicle(v), prior_map(std::move(prior)) {
     planner.assumed_half_width_m = p.assumed_half_width_m;
     pursuit = {v.wheelbase_m, v.max_steer_rad, p.lookahead_min_m, p.lookahead_gain_s};
+    tracker.wheelbase_m = v.wheelbase_m;
+    tracker.max_steer_rad = v.max_steer_rad;
+    tracker.yaw_gain = v.yaw_gain;
+    // the known racing line is held more tightly: its path does not start at the car
+    fast_tracker = tracker;
+    fast_tracker.frequency_per_m = kFastFrequencyPerM;
+    fast_tracker.max_frequency_rps = kFastMaxFrequencyRps;
+    // the grip fraction scales the tyre friction and with it the traction-limited drive force
+    // (exact for a car whose drive is grip-limited at full grip, as the default car's is;
+    // cautious otherwise)
+    envelope = v.envelope;
+    envelope.friction *= p.grip_fraction;
+    envelope.max_drive_force_n *= p.grip_fraction;
+    footprint = {v.rear_axle_to_front_m, v.rear_axle_to_back_m, 0.5 * v.width_m,
+                 p.footprint_margin_m};
   }
 
   // one update: bookkeeping, then the event's mission
@@ -185,7 +225,7 @@ struct Driver::Impl {
       phase = Phase::kStopped;
     if (phase == Phase::kStopped) {
       status.finished = true;
-      cmd.accel_mps2 = -params.max_decel_mps2;
+      cmd.accel_mps2 = -decel_cap();
       cmd.hold_stopped = true;
       status.target_speed_mps = 0.0;
     }
@@ -222,7 +262,7 @@ struct Driver::Impl {
     VehicleCommand cmd;
     if (path.points.size() < 2) {
       status.target_speed_mps = 0.0;
-      cmd.accel_mps2 = -params.max_decel_mps2 * kEndOfPathDecelShare;
+      cmd.accel_mps2 = -decel_cap() * kEndOfPathDecelShare;
       return cmd;
     }
 
@@ -241,10 +281,38 @@ struct Driver::Impl {
     const double s_here = s[here.segment] + here.t * (s[here.segment + 1] - s[here.segment]);
     status.target_speed_mps = speed_command_target(est.speed_mps, s_here);
 
-    // pure pursuit steering and the speed command
-    cmd.steer_rad = pure_pursuit(pursuit, est.pose, est.speed_mps, path, here).steer_rad;
+    // steering: the circuits track the path's curvature with feedback on the errors, the
+    // other events aim with pure pursuit; then the speed command
+    if (event == EventType::kAutocross || event == EventType::kTrackdrive) {
+      const bool fast = phase == Phase::kFast;
+      const double preview_s = fast ? kFastSteerPreviewS : kSteerPreviewS;
+      const double ahead = s_here + preview_s * std::max(0.0, est.speed_mps);
+      cmd.steer_rad = track_path(fast ? fast_tracker : tracker, est.pose, est.speed_mps, path, here,
+                                 curvature_at(s, ahead));
+    } else {
+      cmd.steer_rad = pure_pursuit(pursuit, est.pose, est.speed_mps, path, here).steer_rad;
+    }
+    // steering near full lock: slow to the tight-turn speed, where the car still turns as
+    // steered (the path may curve less than the car must turn to come back onto it)
+    if (std::abs(cmd.steer_rad) >= kSteerSaturationShare * vehicle.max_steer_rad)
+      speed_cap = std::min(speed_cap, SpeedLimits{}.tight_turn_speed_mps);
     cmd.accel_mps2 = speed_command(est.speed_mps, s_here, speed_cap);
     return cmd;
+  }
+
+  // the path's curvature at arc length `at`, averaged over a short span (s: arc lengths)
+  double curvature_at(const std::vector<double>& s, double at) const {
+    const std::vector<double> k = curvatures(path.points, path.closed);
+    const double lap = path.closed ? s.back() : 0.0;
+    double sum = 0.0;
+    for (int m = -2; m <= 2; ++m) {
+      double q = at + 0.5 * m * kCurvatureSpanM;
+      q = lap > 0.0 ? std::fmod(std::fmod(q, lap) + lap, lap) : std::clamp(q, 0.0, s.back());
+      // the point at or before q
+      const auto it = std::upper_bound(s.begin(), s.begin() + static_cast<long>(k.size()), q);
+      sum += k[it == s.begin() ? 0 : static_cast<size_t>(it - s.begin()) - 1];
+    }
+    return sum / 5.0;
   }
 
   // the profile speed a short preview ahead of s
@@ -259,12 +327,34 @@ struct Driver::Impl {
     const double v1 = std::min(speed_cap, profile.speed_at(s0 + kFeedForwardSpanM, lap_m));
     const double feed_forward = (v1 * v1 - v0 * v0) / (2.0 * kFeedForwardSpanM);
     const double a = feed_forward + params.speed_gain_per_s * (v0 - v);
-    return std::clamp(a, -params.max_decel_mps2, params.max_accel_mps2);
+    return std::clamp(a, -decel_cap(), accel_cap());
   }
 
-  // the speed limits with a cap
+  // the speed limits with a cap: the envelope at the grip fraction
   SpeedLimits limits(double cap) const {
-    return {cap, params.max_lateral_accel_mps2, params.max_accel_mps2, params.max_decel_mps2};
+    SpeedLimits l;
+    l.max_speed_mps = cap;
+    l.max_lateral_accel_mps2 =
+        circuit_event() ? kCircuitLateralCapMps2 : params.max_lateral_accel_mps2;
+    l.max_accel_mps2 = accel_cap();
+    l.max_decel_mps2 = decel_cap();
+    if (!circuit_event()) return l;  // acceleration and skidpad keep their constant limits
+    l.envelope = envelope;
+    l.max_curvature = 1.0 / full_lock_radius_m(vehicle);
+    return l;
+  }
+
+  // autocross and trackdrive plan from the envelope; acceleration and skidpad from the keys
+  bool circuit_event() const {
+    return event == EventType::kAutocross || event == EventType::kTrackdrive;
+  }
+
+  // the longitudinal limits of the speed command and of braking, m/s^2
+  double decel_cap() const {
+    return circuit_event() ? kCircuitLongitudinalCapMps2 : params.max_decel_mps2;
+  }
+  double accel_cap() const {
+    return circuit_event() ? kCircuitLongitudinalCapMps2 : params.max_accel_mps2;
   }
 
   // --- acceleration ---------------------------------------------------------------------------
@@ -296,7 +386,7 @@ struct Driver::Impl {
 
     // brake once past the finish line, or earlier if the braking zone would be too short
     const double v = std::max(0.0, est.speed_mps);
-    const double stop_x = x + v * v / (2.0 * kBrakingZoneDecelShare * params.max_decel_mps2);
+    const double stop_x = x + v * v / (2.0 * kBrakingZoneDecelShare * decel_cap());
     const double zone_end_x = finish_x_m + kBrakingZoneM - vehicle.rear_axle_to_front_m;
     if (phase == Phase::kLaunch &&
         (x > finish_x_m + kBrakePastFinishM || stop_x > zone_end_x - kBrakingZoneMarginM))
@@ -307,7 +397,7 @@ struct Driver::Impl {
                            : params.speed_gain_per_s * (params.acceleration_speed_mps - v);
       status.target_speed_mps = params.acceleration_speed_mps;
     } else {
-      cmd.accel_mps2 = -params.max_decel_mps2;
+      cmd.accel_mps2 = -decel_cap();
       status.target_speed_mps = 0.0;
     }
     return cmd;
@@ -383,12 +473,12 @@ struct Driver::Impl {
 
     // exploring (and braking after an autocross) replans from the cones near the car
     if (phase == Phase::kExplore || (phase == Phase::kBraking && !path.closed)) {
-      const Path local = plan_local_path(cones_near(est, in.observations, kPlanningRadiusM),
-                                         est.pose, planner, kExploreHorizonM);
+      const std::vector<MapCone> near = cones_near(est, in.observations, kPlanningRadiusM);
+      const Path local = plan_local_path(near, est.pose, planner, kExploreHorizonM);
+      status.problem = local.points.size() < 2 ? "no path through the cones ahead" : "";
       if (local.length() >= kMinLocalPathM || path.points.size() < 2) {
         path = local;
-        const double end_v =
-            std::sqrt(2.0 * kEndOfPathDecelShare * params.max_decel_mps2 * path.length());
+        const double end_v = std::sqrt(2.0 * kEndOfPathDecelShare * decel_cap() * path.length());
         profile = plan_speed(path, limits(params.explore_speed_mps), est.speed_mps, end_v);
         lap_m = 0.0;
         track_progress = false;
@@ -398,10 +488,21 @@ struct Driver::Impl {
     const double cap = phase == Phase::kFast ? params.fast_speed_mps : params.explore_speed_mps;
     VehicleCommand cmd = follow(est, cap);
     if (phase == Phase::kBraking) {
-      cmd.accel_mps2 = -params.max_decel_mps2;
+      cmd.accel_mps2 = -decel_cap();
       status.target_speed_mps = 0.0;
     }
     return cmd;
+  }
+
+  // the racing line for the fast laps: least curvature with the footprint clear of the cones,
+  // within the corridor between the boundaries the circuit was walked between
+  Path fast_line(const Path& centre, const std::vector<MapCone>& map, const Pose2& from) const {
+    constexpr double kMaxCircuitM = 3000.0;
+    const Boundaries b = chain_boundaries(map, from, planner, kMaxCircuitM, true);
+    if (!b.left_closed || !b.right_closed) return centre;
+    const RacingLine line = plan_racing_line(centre.points, true, b.left, b.right, map, footprint);
+    if (line.path.points.size() < 20) return centre;
+    return Path{resample(line.path.points, 1.0, true), true};
   }
 
   // a lap is done: brake after the last one, or switch to the fast circuit after lap 1
@@ -423,7 +524,7 @@ struct Driver::Impl {
       circuit = Path{resample(lap, 1.0, true), true};
     }
     if (!circuit) return;  // keep exploring
-    path = *circuit;
+    path = fast_line(*circuit, est.map, start);
     profile = plan_speed(path, limits(params.fast_speed_mps));
     lap_m = path.length();
     track_progress = true;

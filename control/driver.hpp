@@ -5,10 +5,12 @@
 
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/autonomy_types.hpp"
 #include "core/event.hpp"
+#include "vehicle_models/performance.hpp"
 
 namespace conesim::control {
 
@@ -17,16 +19,28 @@ struct DriverParams {
   /// Speed cap while the track is unknown (autocross, trackdrive lap 1), m/s.
   double explore_speed_mps = 9.0;
   /// Speed cap once the whole track is known (trackdrive laps 2-10), m/s.
-  double fast_speed_mps = 16.0;
+  double fast_speed_mps = 40.0;
   /// Speed cap on the acceleration straight, m/s.
   double acceleration_speed_mps = 40.0;
   /// Speed cap on skidpad, m/s.
   double skidpad_speed_mps = 9.0;
-  /// Lateral acceleration the speed profile plans for, m/s^2.
+  /// Share of the car's measured grip (its PerformanceEnvelope) the speed profile plans for:
+  /// lateral, drive and braking limits over speed all come from the envelope at this fraction.
+  /// 0.7: on PacSim FSE22 the MuJoCo car's lateral error on the racing line peaked at 0.47 m
+  /// with 0.8 (it understeers near the limit and its grip saturates abruptly), 0.23 m with 0.7
+  /// and 0.17 m with 0.6, for laps of 15.65, 16.38 and 17.33 s.
+  double grip_fraction = 0.7;
+  /// Acceleration and skidpad: the lateral acceleration their speed profile plans for and the
+  /// longitudinal limits of their speed profile and command, m/s^2 (the circuits plan from the
+  /// envelope).
   double max_lateral_accel_mps2 = 9.0;
-  /// Longitudinal limits of the speed profile, m/s^2.
   double max_accel_mps2 = 6.0;
   double max_decel_mps2 = 8.0;
+  /// Clearance planned between the car's footprint (its whole rectangle) and any cone, metres.
+  double footprint_margin_m = 0.3;
+  /// Check before a run that the layout is drivable by this car (`conesim run` refuses one
+  /// that is not, naming the place); false runs it anyway.
+  bool check_drivable = true;
   /// Pure pursuit look-ahead: distance = max(min, gain * speed), metres and seconds.
   double lookahead_min_m = 3.0;
   double lookahead_gain_s = 0.35;
@@ -49,6 +63,18 @@ struct VehicleGeometry {
   double max_steer_rad = 0.4712;
   /// Distance from the reference point (rear axle centre) forward to the front wing, metres.
   double rear_axle_to_front_m = 2.25;
+  /// Distance from the rear axle back to the rear end of the car, and the car's width, metres.
+  double rear_axle_to_back_m = 0.65;
+  double width_m = 1.4;
+  /// Yaw rate at a steering angle over the kinematic v tan(d) / L, measured on the MuJoCo car
+  /// with anti-Ackermann steering at 2-6 m/s (tests/sim/vehicle_sim_test.cpp,
+  /// FullLockCircleAtLowSpeed: the front tyres fight at large angles, so full lock turns the
+  /// rear axle on 4.4 m, not the kinematic 3.0 m); pairs of (angle rad, gain), angles rising.
+  std::vector<std::pair<double, double>> yaw_gain = {
+      {0.0, 1.0}, {0.2007, 0.914}, {0.2967, 0.821}, {0.3840, 0.754}, {0.4712, 0.688}};
+  /// What the car can do over speed at its full measured grip; the driver plans with
+  /// DriverParams::grip_fraction of it.
+  vehicle_models::PerformanceEnvelope envelope;
 };
 
 /// Everything the driver gets each time it runs.
@@ -73,6 +99,9 @@ struct DriverStatus {
   double target_speed_mps = 0.0;
   /// Distance the reference point has travelled since the start, metres.
   double odometer_m = 0.0;
+  /// Why the driver cannot go on as planned (e.g. "no path through the cones ahead"); empty
+  /// while all is well. The run appends it to a DNF reason.
+  std::string problem;
 };
 
 /// One driver per run; not copyable (holds the mission state).

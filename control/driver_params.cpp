@@ -19,6 +19,7 @@ std::string DriverParams::validate() const {
       {"assumed_half_width_m", assumed_half_width_m},
       {"launch_accel_mps2", launch_accel_mps2},
       {"speed_gain_per_s", speed_gain_per_s},
+      {"grip_fraction", grip_fraction},
   };
   for (const auto& [key, value] : positive) {
     if (!std::isfinite(value) || value <= 0.0 || value > 1000.0) {
@@ -27,6 +28,12 @@ std::string DriverParams::validate() const {
       return s.str();
     }
   }
+  if (grip_fraction > 1.0)
+    return "grip_fraction: expected a share of the measured grip in (0, 1], got " +
+           std::to_string(grip_fraction);
+  if (!std::isfinite(footprint_margin_m) || footprint_margin_m < 0.0 || footprint_margin_m > 2.0)
+    return "footprint_margin_m: expected metres from 0 to 2, got " +
+           std::to_string(footprint_margin_m);
   if (trackdrive_laps < 1 || trackdrive_laps > 100)
     return "trackdrive_laps: expected a lap count from 1 to 100, got " +
            std::to_string(trackdrive_laps);

@@ -56,4 +56,42 @@ PurePursuitCommand pure_pursuit(const PurePursuitParams& params, const core::Pos
   return cmd;
 }
 
+double yaw_gain_at(const std::vector<std::pair<double, double>>& table, double d) {
+  d = std::abs(d);
+  if (table.empty()) return 1.0;
+  if (d <= table.front().first) return table.front().second;
+  for (size_t i = 1; i < table.size(); ++i) {
+    if (d > table[i].first) continue;
+    const auto& [d0, g0] = table[i - 1];
+    const auto& [d1, g1] = table[i];
+    return g0 + (d - d0) / (d1 - d0) * (g1 - g0);
+  }
+  return table.back().second;
+}
+
+double steer_for_curvature(const TrackerParams& params, double k) {
+  // tan(d) / L gain(d) = k, by fixed-point iteration from the kinematic angle
+  double d = std::atan(params.wheelbase_m * k);
+  for (int i = 0; i < 6; ++i)
+    d = std::atan(params.wheelbase_m * k / std::max(0.3, yaw_gain_at(params.yaw_gain, d)));
+  return std::clamp(d, -params.max_steer_rad, params.max_steer_rad);
+}
+
+double track_path(const TrackerParams& params, const core::Pose2& pose, double speed_mps,
+                  const Path& path, const PathProjection& from, double curvature_ahead) {
+  if (path.segment_count() == 0) return 0.0;
+
+  // errors of the rear axle: lateral (positive left of the path) and heading
+  const Vec2 a = path.points[from.segment], b = path.segment_end(from.segment);
+  const Vec2 t = (b - a).norm() > 1e-9 ? Vec2((b - a).normalized()) : pose.heading();
+  const double lateral = core::cross(t, pose.position() - from.point);
+  const double heading = core::normalize_angle(pose.yaw - std::atan2(t.y(), t.x()));
+
+  // second-order error dynamics over distance, the frequency capped in time at speed
+  const double v = std::max(1.0, std::abs(speed_mps));
+  const double w = std::min(params.frequency_per_m, params.max_frequency_rps / v);
+  const double k = curvature_ahead - w * w * lateral - 2.0 * params.damping * w * std::sin(heading);
+  return steer_for_curvature(params, k);
+}
+
 }  // namespace conesim::control

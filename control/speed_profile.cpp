@@ -9,6 +9,8 @@ namespace {
 
 // curvature below this counts as straight (avoids dividing by zero)
 constexpr double kMinCurvature = 1e-4;
+// a turn tighter than this share of the steering's limit is driven at the tight-turn speed
+constexpr double kTightTurnShare = 0.75;
 // the longitudinal share never drops below this fraction of the limit, so that a car at the
 // lateral limit can still brake and speed up a little
 constexpr double kMinLongitudinalShare = 0.2;
@@ -20,6 +22,40 @@ double longitudinal_room(double limit, double v, double k, double a_lat_max) {
 }
 
 }  // namespace
+
+double SpeedLimits::lateral_mps2(double v) const {
+  if (!envelope) return max_lateral_accel_mps2;
+  return std::min(max_lateral_accel_mps2, envelope->lateral_limit_mps2(v));
+}
+
+double SpeedLimits::accel_mps2(double v) const {
+  if (!envelope) return max_accel_mps2;
+  return std::clamp(envelope->accel_limit_mps2(v), 0.0, max_accel_mps2);
+}
+
+double SpeedLimits::decel_mps2(double v) const {
+  if (!envelope) return max_decel_mps2;
+  return std::min(max_decel_mps2, envelope->decel_limit_mps2(v));
+}
+
+double SpeedLimits::corner_speed_mps(double k) const {
+  const double curvature = std::max(kMinCurvature, std::abs(k));
+  // near full lock: the tight-turn speed
+  if (max_curvature > 0.0 && curvature >= kTightTurnShare * max_curvature) {
+    SpeedLimits unlimited = *this;
+    unlimited.max_curvature = 0.0;
+    return std::min(tight_turn_speed_mps, unlimited.corner_speed_mps(k));
+  }
+  if (!envelope) return std::min(max_speed_mps, std::sqrt(max_lateral_accel_mps2 / curvature));
+  // v^2 k = lateral(v): bisection, since lateral(v) / v^2 falls with speed
+  double lo = 0.0, hi = max_speed_mps;
+  if (hi * hi * curvature <= lateral_mps2(hi)) return hi;
+  for (int i = 0; i < 50; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (mid * mid * curvature <= lateral_mps2(mid) ? lo : hi) = mid;
+  }
+  return lo;
+}
 
 double SpeedProfile::speed_at(double s, double lap_m) const {
   if (s_m.empty()) return 0.0;
@@ -57,9 +93,7 @@ SpeedProfile plan_speed(const Path& path, const SpeedLimits& limits,
   // lateral limit from the curvature
   const std::vector<double> k = curvatures(path.points, path.closed);
   std::vector<double> v(n);
-  for (size_t i = 0; i < n; ++i)
-    v[i] = std::min(limits.max_speed_mps, std::sqrt(limits.max_lateral_accel_mps2 /
-                                                    std::max(kMinCurvature, std::abs(k[i]))));
+  for (size_t i = 0; i < n; ++i) v[i] = limits.corner_speed_mps(k[i]);
   if (!path.closed && start_speed_mps) v[0] = std::min(v[0], std::max(0.0, *start_speed_mps));
   if (!path.closed && end_speed_mps) v[n - 1] = std::min(v[n - 1], std::max(0.0, *end_speed_mps));
 
@@ -75,7 +109,7 @@ SpeedProfile plan_speed(const Path& path, const SpeedLimits& limits,
     for (size_t m = 0; m < steps; ++m) {
       const size_t i = m % n, j = (m + 1) % n;
       const double a =
-          longitudinal_room(limits.max_accel_mps2, v[i], k[i], limits.max_lateral_accel_mps2);
+          longitudinal_room(limits.accel_mps2(v[i]), v[i], k[i], limits.lateral_mps2(v[i]));
       v[j] = std::min(v[j], std::sqrt(v[i] * v[i] + 2.0 * a * ds(i)));
     }
   }
@@ -83,7 +117,7 @@ SpeedProfile plan_speed(const Path& path, const SpeedLimits& limits,
     for (size_t m = steps; m-- > 0;) {
       const size_t i = m % n, j = (m + 1) % n;
       const double a =
-          longitudinal_room(limits.max_decel_mps2, v[j], k[j], limits.max_lateral_accel_mps2);
+          longitudinal_room(limits.decel_mps2(v[j]), v[j], k[j], limits.lateral_mps2(v[j]));
       v[i] = std::min(v[i], std::sqrt(v[j] * v[j] + 2.0 * a * ds(i)));
     }
   }

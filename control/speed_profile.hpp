@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "control/path.hpp"
+#include "vehicle_models/performance.hpp"
 
 namespace conesim::control {
 
@@ -18,6 +19,22 @@ struct SpeedLimits {
   /// Longitudinal acceleration and deceleration allowed on a straight, m/s^2.
   double max_accel_mps2 = 6.0;
   double max_decel_mps2 = 8.0;
+  /// The car's limits over speed (at the grip fraction planned for); when given, the lateral,
+  /// drive and braking limits at each speed are the envelope's, each capped by the constant
+  /// limit above.
+  std::optional<vehicle_models::PerformanceEnvelope> envelope;
+  /// Tightest curvature the car's steering gives (full lock, with its yaw loss), 1/m; 0: none.
+  /// Near it the car turns at tight_turn_speed_mps at most, where it still follows its steering
+  /// (the tyres fight and slide at full lock with any speed).
+  double max_curvature = 0.0;
+  double tight_turn_speed_mps = 4.0;
+
+  /// Lateral, forward and braking acceleration allowed at speed v, m/s^2.
+  double lateral_mps2(double v) const;
+  double accel_mps2(double v) const;
+  double decel_mps2(double v) const;
+  /// Highest speed on a turn of curvature k (lateral limit, capped by max_speed_mps), m/s.
+  double corner_speed_mps(double k) const;
 };
 
 /// The planned speed at each point of a path.

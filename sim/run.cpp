@@ -6,6 +6,7 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "control/drivability.hpp"
 #include "control/driver.hpp"
 #include "core/error.hpp"
 #include "sim/lap_time_report.hpp"
@@ -14,6 +15,7 @@
 #include "sim/track_commands.hpp"
 #include "sim/vehicle_sim.hpp"
 #include "tracks/io.hpp"
+#include "tracks/rules.hpp"
 
 namespace conesim::sim {
 
@@ -116,6 +118,20 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
   return failures;
 }
 
+// what the driver knows of the car: its geometry and its envelope at full measured grip
+control::VehicleGeometry driver_vehicle(const vehicle_models::VehicleParams& vp) {
+  control::VehicleGeometry g;
+  g.wheelbase_m = vp.wheelbase_m;
+  g.max_steer_rad = vp.max_steer_rad;
+  g.rear_axle_to_front_m = vp.front_overhang_from_rear_axle_m;
+  g.rear_axle_to_back_m = vp.length_m - vp.front_overhang_from_rear_axle_m;
+  g.width_m = vp.width_m;
+  g.envelope = vehicle_models::PerformanceEnvelope::of(vp, 1.0);
+  // the measured yaw loss is the anti-Ackermann car's; Ackermann steering keeps within 1.4 %
+  if (vp.ackermann_factor >= 0.0) g.yaw_gain.clear();
+  return g;
+}
+
 // the referee's events for metrics.json: kind, time, lap, the car's pose, reason, penalty, and
 // the cone or the wheels
 nlohmann::json events_json(const std::vector<RefereeEvent>& events) {
@@ -147,6 +163,20 @@ nlohmann::json events_json(const std::vector<RefereeEvent>& events) {
 }
 
 }  // namespace
+
+std::string drivability_problem(const Scenario& s, const tracks::Track& track) {
+  if (s.event != core::EventType::kAutocross && s.event != core::EventType::kTrackdrive) return {};
+  // a car that starts off the track finds no path through the cones
+  for (const tracks::Violation& v : tracks::check_rules(track, s.event))
+    if (v.rule == "start_on_track") return v.message + ": the driver finds no path from there";
+  std::vector<core::MapCone> cones;
+  for (const tracks::Cone& c : track.cones)
+    cones.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
+  const control::Drivability d = control::check_drivability(
+      track.lane_points(track.left_lane), track.lane_points(track.right_lane), track.centre_line,
+      track.closed, cones, driver_vehicle(s.vehicle));
+  return d.reason;
+}
 
 tracks::Track scenario_track(const Scenario& s) {
   if (!s.track.file) {
@@ -222,9 +252,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   core::Pose2 driving_pose = car.truth().pose;
   core::ConeObservations latest_detections;
   core::Pose2 latest_capture_pose;
-  control::Driver driver(s.event, s.driver,
-                         {vp.wheelbase_m, vp.max_steer_rad, vp.front_overhang_from_rear_axle_m},
-                         prior_map);
+  control::Driver driver(s.event, s.driver, driver_vehicle(vp), prior_map);
 
   // the schedule on the integer clock
   const TimeUs step_us = core::from_seconds(car.timestep_s());
@@ -356,6 +384,9 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     e.reason = dnf_override;
     result.referee.events.push_back(e);
   }
+  // the driver's own word on why it could not go on
+  if (!result.referee.completed && !driver.status().problem.empty())
+    result.referee.dnf_reason += " (driver: " + driver.status().problem + ")";
   const nlohmann::json slam_metrics = slam ? slam->metrics() : nlohmann::json();
   result.failures = check_pass(s.pass, result.referee, slam_metrics);
   result.passed = result.failures.empty();

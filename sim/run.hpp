@@ -63,6 +63,11 @@ core::ConeObservations perceive_ground_truth(const tracks::Track& track, const c
                                              const std::function<bool(int)>& is_knocked,
                                              std::vector<int>* ids = nullptr);
 
+/// Why the car cannot drive the scenario's circuit (autocross, trackdrive), naming the place,
+/// e.g. "lanes 1.90 m apart at (12.3, -4.5), the car needs 1.83 m"; empty when it can or when
+/// the event is not a circuit.
+std::string drivability_problem(const Scenario& scenario, const tracks::Track& track);
+
 /// Runs the scenario on the track to the referee's verdict and writes trajectory.csv, track.csv
 /// and metrics.json (last of the results, so a run that stops early leaves none; an earlier one
 /// in the folder is removed first) to options.out_dir, then the pictures (run.png, and the

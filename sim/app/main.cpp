@@ -288,6 +288,13 @@ void add_run_command(CLI::App& app, int& status) {
     }
     const conesim::tracks::Track t = sim::scenario_track(s);
     for (const std::string& w : t.warnings) std::cerr << "warning: " << w << "\n";
+    // a circuit this car cannot drive is refused before any run folder is made
+    if (s.driver.check_drivable) {
+      if (const std::string why = sim::drivability_problem(s, t); !why.empty())
+        throw conesim::core::InputError(
+            s.track.file ? s.track.file->string() : t.name, 0,
+            "not drivable by this car: " + why + " (driver.check_drivable=false runs it anyway)");
+    }
 
     sim::RunOptions options;
     options.plot = !*no_plot;

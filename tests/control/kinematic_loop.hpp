@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "control/driver.hpp"
+#include "control/pure_pursuit.hpp"
 #include "tracks/track.hpp"
 #include "vehicle_models/kinematics.hpp"
 
@@ -42,6 +43,9 @@ struct LoopParams {
   /// the other boundary colour (blue and yellow swapped); 0 turns either off.
   int missing_every = 0;
   int recolour_every = 0;
+  /// Yaw rate over the kinematic one at a steering angle (the MuJoCo car's anti-Ackermann
+  /// loss, as the driver knows it); empty: kinematic.
+  std::vector<std::pair<double, double>> yaw_gain = VehicleGeometry{}.yaw_gain;
   /// Give up after this much simulated time, seconds.
   double max_time_s = 600.0;
   /// Called after each driver update with the time, the true pose and the driver's status
@@ -93,7 +97,11 @@ inline LoopResult run_loop(const tracks::Track& track, core::EventType event,
                            const DriverParams& params, const LoopParams& loop = {},
                            const std::vector<core::MapCone>& prior_track_frame = {}) {
   // the start: rear axle behind the front wing; the map frame sits there
-  const VehicleGeometry vehicle{1.53, 0.4712, loop.front_m};
+  VehicleGeometry vehicle;
+  vehicle.rear_axle_to_front_m = loop.front_m;
+  vehicle.rear_axle_to_back_m = loop.rear_m;
+  vehicle.width_m = 2.0 * loop.half_width_m;
+  vehicle.yaw_gain = loop.yaw_gain;
   Pose2 pose = track.start.compose({-loop.front_m, 0.0, 0.0});
   const Pose2 map_origin = pose;
   std::vector<core::MapCone> prior;
@@ -167,7 +175,8 @@ inline LoopResult run_loop(const tracks::Track& track, core::EventType event,
 
     // motion
     const Vec2 front_before = pose.transform({loop.front_m, 0.0});
-    pose = vehicle_models::bicycle_step(pose, v, steer, vehicle.wheelbase_m, loop.dt_s);
+    const double effective_steer = std::atan(std::tan(steer) * yaw_gain_at(loop.yaw_gain, steer));
+    pose = vehicle_models::bicycle_step(pose, v, effective_steer, vehicle.wheelbase_m, loop.dt_s);
     v = std::max(0.0, v + accel * loop.dt_s);
     result.max_speed_mps = std::max(result.max_speed_mps, v);
     const Vec2 front_after = pose.transform({loop.front_m, 0.0});

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -94,6 +95,45 @@ TEST(SpeedProfile, OpenPathEndsAtTheEndSpeed) {
   EXPECT_NEAR(profile.speed_at(50.0 - braking_m - 0.5), limits.max_speed_mps, 1e-9);
   EXPECT_NEAR(profile.speed_at(50.0 - 0.5 * braking_m),
               std::sqrt(2.0 * limits.max_decel_mps2 * 0.5 * braking_m), 0.05);
+}
+
+TEST(SpeedProfile, RespectsTheEnvelopeAtTheGripFraction) {
+  // the car's envelope at 0.8 of its measured grip: on the hairpin the lateral acceleration is
+  // the envelope's at that speed, and between points the speed changes within the envelope's
+  // drive and braking limits (with the lateral share taken off: friction ellipse)
+  double hairpin_s = 0.0;
+  constexpr double kHairpinRadiusM = 6.0;
+  const Path path = straight_hairpin_straight(120.0, kHairpinRadiusM, 80.0, &hairpin_s);
+  vehicle_models::VehicleParams car;
+  SpeedLimits limits;
+  limits.max_speed_mps = 60.0;
+  limits.max_lateral_accel_mps2 = 100.0;
+  limits.max_accel_mps2 = 100.0;
+  limits.max_decel_mps2 = 100.0;
+  limits.envelope = vehicle_models::PerformanceEnvelope::of(car, 0.8);
+  const SpeedProfile profile = plan_speed(path, limits, 0.0, std::nullopt);
+  const std::vector<double>& s = profile.s_m;
+  const std::vector<double>& v = profile.speed_mps;
+  const auto& e = *limits.envelope;
+  const std::vector<double> k = curvatures(path.points, false);
+  for (size_t i = 0; i + 1 < v.size(); ++i) {
+    EXPECT_LE(v[i] * v[i] * std::abs(k[i]), e.lateral_limit_mps2(v[i]) * 1.001) << i;
+    const double a = (v[i + 1] * v[i + 1] - v[i] * v[i]) / (2.0 * (s[i + 1] - s[i]));
+    EXPECT_LE(a, e.accel_limit_mps2(v[i]) + 1e-6) << i;
+    EXPECT_GE(a, -e.decel_limit_mps2(v[i + 1]) - 1e-6) << i;
+  }
+  // mid-hairpin the car runs at the envelope's corner speed, faster than 0.8 g would allow
+  // without downforce, and on the straight it reaches well over 16 m/s
+  const size_t mid = static_cast<size_t>(
+      std::lower_bound(s.begin(), s.end(), hairpin_s + 0.5 * kPi * kHairpinRadiusM) - s.begin());
+  const double v_corner = v[mid];
+  EXPECT_NEAR(v_corner * v_corner / kHairpinRadiusM, e.lateral_limit_mps2(v_corner),
+              0.02 * e.lateral_limit_mps2(v_corner));
+  EXPECT_GT(*std::max_element(v.begin(), v.end()), 20.0);
+  // at full grip the same corner is faster
+  SpeedLimits full = limits;
+  full.envelope = vehicle_models::PerformanceEnvelope::of(car, 1.0);
+  EXPECT_GT(plan_speed(path, full, 0.0, std::nullopt).speed_mps[mid], v_corner * 1.05);
 }
 
 }  // namespace

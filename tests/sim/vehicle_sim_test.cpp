@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <numbers>
 
+#include "control/drivability.hpp"
 #include "vehicle_models/kinematics.hpp"
 
 namespace conesim::sim {
@@ -95,6 +96,28 @@ TEST(VehicleSim, VehicleFrameSitsOnTheGroundUnderTheRearAxle) {
   EXPECT_NEAR(p.planar().x, 2.0, 0.01);
   EXPECT_NEAR(p.planar().y, -1.0, 0.01);
   EXPECT_NEAR(p.planar().yaw, 0.5, 1e-3);
+}
+
+// the tightest circle the car drives on full lock at low speed: the anti-Ackermann front tyres
+// fight, so it is wider than the kinematic wheelbase / tan(max steer) = 3.0 m. Measured at 2, 4
+// and 6 m/s: 8.2-8.6 m at 11.5 deg (kinematic 7.5), 6.1-6.3 at 17 (5.0), 5.0-5.2 at 22 (3.8),
+// 4.36-4.45 at 27 (3.0). The driver's yaw-gain table and the drivability check use these.
+TEST(VehicleSim, FullLockCircleIsTheDriversFigure) {
+  const VehicleParams params;
+  for (const double speed : {2.0, 6.0}) {
+    VehicleSim car(params, {});
+    double min_x = 1e9, max_x = -1e9, min_y = 1e9, max_y = -1e9;
+    for (int i = 0; i < 16000; ++i) {
+      car.step(cruise(car.truth(), speed, params.max_steer_rad));
+      if (i < 8000) continue;  // settle first
+      const core::Vec2 p = car.truth().pose.position();
+      min_x = std::min(min_x, p.x()), max_x = std::max(max_x, p.x());
+      min_y = std::min(min_y, p.y()), max_y = std::max(max_y, p.y());
+    }
+    const double radius = 0.25 * ((max_x - min_x) + (max_y - min_y));
+    std::printf("measured: %.0f m/s on full lock: rear-axle radius %.2f m\n", speed, radius);
+    EXPECT_NEAR(radius, control::full_lock_radius_m(control::VehicleGeometry{}), 0.15);
+  }
 }
 
 }  // namespace

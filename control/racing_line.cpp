@@ -1,0 +1,268 @@
+#include "control/racing_line.hpp"
+
+#include <Eigen/Sparse>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace conesim::control {
+
+namespace {
+
+using core::MapCone;
+
+// a small weight on the offset itself, so that the least-curvature problem has one solution on
+// straights (any parallel shift is as straight)
+constexpr double kOffsetWeight = 1e-4;
+// weight that pins an offset at its bound in the active-set solve
+constexpr double kPinWeight = 1e8;
+// the active-set loop gives up after this many solves (it keeps the last feasible line)
+constexpr int kMaxActiveSetRounds = 60;
+// the footprint check narrows the corridor and plans again at most this many times
+constexpr int kMaxFootprintRounds = 10;
+// a narrowing is spread over this many points either side of where the footprint came too
+// close, and is this much more than the shortfall, metres
+constexpr int kNarrowHalfWindow = 6;
+constexpr double kNarrowExtraM = 0.05;
+// cones further than this from the rear axle cannot touch the footprint, metres
+constexpr double kFootprintReachM = 4.0;
+
+// distance from p to a polyline (closed: with the closing segment); infinity when empty
+double distance_to_polyline(const Vec2& p, const std::vector<Vec2>& line, bool closed) {
+  if (line.empty()) return std::numeric_limits<double>::infinity();
+  if (line.size() == 1) return (p - line.front()).norm();
+  double best = std::numeric_limits<double>::infinity();
+  const size_t n = line.size();
+  for (size_t i = 0; i + 1 < n + (closed ? 1 : 0); ++i)
+    best = std::min(best, core::distance_to_segment(p, line[i], line[(i + 1) % n]));
+  return best;
+}
+
+// distance from p to the rectangle [x0, x1] x [-hw, hw]
+double distance_to_box(const Vec2& p, double x0, double x1, double hw) {
+  const double dx = std::max({x0 - p.x(), 0.0, p.x() - x1});
+  const double dy = std::max(std::abs(p.y()) - hw, 0.0);
+  return std::hypot(dx, dy);
+}
+
+// index of a neighbour `k` steps from i (wrapping when closed, clamped when open)
+size_t neighbour(size_t i, int k, size_t n, bool closed) {
+  const long j = static_cast<long>(i) + k;
+  if (closed)
+    return static_cast<size_t>(((j % static_cast<long>(n)) + static_cast<long>(n)) %
+                               static_cast<long>(n));
+  return static_cast<size_t>(std::clamp(j, 0L, static_cast<long>(n) - 1));
+}
+
+// the offsets of least squared second difference within [lo, hi] (active-set solve of the
+// box-constrained least squares problem; pinned offsets are held by a stiff penalty)
+std::vector<double> least_curvature_offsets(const Corridor& c, const std::vector<double>& lo,
+                                            const std::vector<double>& hi) {
+  const size_t n = c.centre.size();
+  // the second differences as A alpha + b: two rows (x, y) per interior point
+  std::vector<Eigen::Triplet<double>> triplets;
+  std::vector<double> b;
+  size_t row = 0;
+  const size_t first = c.closed ? 0 : 1, last = c.closed ? n : n - 1;
+  for (size_t i = first; i < last; ++i) {
+    const size_t im = neighbour(i, -1, n, c.closed), ip = neighbour(i, 1, n, c.closed);
+    const Vec2 d0 = c.centre[im] - 2.0 * c.centre[i] + c.centre[ip];
+    for (int axis = 0; axis < 2; ++axis) {
+      triplets.emplace_back(row, im, c.normal[im][axis]);
+      triplets.emplace_back(row, i, -2.0 * c.normal[i][axis]);
+      triplets.emplace_back(row, ip, c.normal[ip][axis]);
+      b.push_back(d0[axis]);
+      ++row;
+    }
+  }
+  Eigen::SparseMatrix<double> a(static_cast<long>(row), static_cast<long>(n));
+  a.setFromTriplets(triplets.begin(), triplets.end());
+  const Eigen::Map<const Eigen::VectorXd> bv(b.data(), static_cast<long>(b.size()));
+  Eigen::SparseMatrix<double> h = a.transpose() * a;
+  for (size_t i = 0; i < n; ++i)
+    h.coeffRef(static_cast<long>(i), static_cast<long>(i)) += kOffsetWeight;
+  const Eigen::VectorXd g = a.transpose() * bv;
+
+  // active set: -1 pinned at lo, +1 at hi, 0 free; offsets with no room are pinned mid-way
+  std::vector<int> active(n, 0);
+  std::vector<double> pin(n, 0.0);
+  for (size_t i = 0; i < n; ++i)
+    if (lo[i] >= hi[i]) active[i] = 2, pin[i] = 0.5 * (lo[i] + hi[i]);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(static_cast<long>(n));
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  for (int round = 0; round < kMaxActiveSetRounds; ++round) {
+    // solve with the active offsets pinned
+    Eigen::SparseMatrix<double> hp = h;
+    Eigen::VectorXd rhs = -g;
+    for (size_t i = 0; i < n; ++i) {
+      if (active[i] == 0) continue;
+      const double target = active[i] == -1 ? lo[i] : active[i] == 1 ? hi[i] : pin[i];
+      hp.coeffRef(static_cast<long>(i), static_cast<long>(i)) += kPinWeight;
+      rhs[static_cast<long>(i)] += kPinWeight * target;
+    }
+    solver.compute(hp);
+    if (solver.info() != Eigen::Success) break;
+    x = solver.solve(rhs);
+
+    // free offsets past a bound join the active set
+    bool changed = false;
+    for (size_t i = 0; i < n; ++i) {
+      if (active[i] != 0) continue;
+      if (x[static_cast<long>(i)] < lo[i] - 1e-6) active[i] = -1, changed = true;
+      if (x[static_cast<long>(i)] > hi[i] + 1e-6) active[i] = 1, changed = true;
+    }
+    if (changed) continue;
+
+    // pinned offsets whose gradient points into the corridor are released
+    const Eigen::VectorXd grad = h * x + g;
+    for (size_t i = 0; i < n; ++i) {
+      if ((active[i] == -1 && grad[static_cast<long>(i)] < -1e-9) ||
+          (active[i] == 1 && grad[static_cast<long>(i)] > 1e-9))
+        active[i] = 0, changed = true;
+    }
+    if (!changed) break;
+  }
+
+  // within the bounds whatever the loop reached
+  std::vector<double> offsets(n);
+  for (size_t i = 0; i < n; ++i) {
+    const double v = x[static_cast<long>(i)];
+    offsets[i] = lo[i] >= hi[i] ? 0.5 * (lo[i] + hi[i]) : std::clamp(v, lo[i], hi[i]);
+  }
+  return offsets;
+}
+
+// heading of the path at point i (chord through the neighbours)
+double heading_at(const std::vector<Vec2>& pts, size_t i, bool closed) {
+  const size_t n = pts.size();
+  const Vec2 d = pts[neighbour(i, 1, n, closed)] - pts[neighbour(i, -1, n, closed)];
+  return std::atan2(d.y(), d.x());
+}
+
+}  // namespace
+
+Corridor make_corridor(const std::vector<Vec2>& centre, bool closed, const std::vector<Vec2>& left,
+                       const std::vector<Vec2>& right, bool boundaries_closed, double max_side_m) {
+  Corridor c;
+  c.centre = centre;
+  c.closed = closed;
+  const size_t n = centre.size();
+  for (size_t i = 0; i < n; ++i) {
+    // the normal from the chord through the neighbours
+    Vec2 t = centre[neighbour(i, 1, n, closed)] - centre[neighbour(i, -1, n, closed)];
+    t = t.norm() > 1e-9 ? t.normalized() : Vec2::UnitX();
+    c.normal.emplace_back(-t.y(), t.x());
+    c.left_m.push_back(
+        std::min(max_side_m, distance_to_polyline(centre[i], left, boundaries_closed)));
+    c.right_m.push_back(
+        std::min(max_side_m, distance_to_polyline(centre[i], right, boundaries_closed)));
+  }
+  return c;
+}
+
+double footprint_clearance(const core::Pose2& pose, const std::vector<MapCone>& cones,
+                           const Footprint& f, Vec2* at) {
+  double best = std::numeric_limits<double>::infinity();
+  for (const MapCone& cone : cones) {
+    const Vec2 local = pose.inverse_transform(cone.position);
+    if (local.squaredNorm() > kFootprintReachM * kFootprintReachM) continue;
+    const double d = distance_to_box(local, -f.rear_m, f.front_m, f.half_width_m) -
+                     0.5 * core::cone_size(cone.cls).base_m;
+    if (d < best) {
+      best = d;
+      if (at) *at = cone.position;
+    }
+  }
+  return best;
+}
+
+RacingLine plan_racing_line(const Corridor& c, const std::vector<MapCone>& cones,
+                            const Footprint& f) {
+  RacingLine line;
+  const size_t n = c.centre.size();
+  if (n < 3) return line;
+
+  // the corridor shrunk by half the car, the margin and a small cone's base radius
+  const double shrink =
+      f.half_width_m + f.margin_m + 0.5 * core::cone_size(core::ConeClass::kBlue).base_m;
+  std::vector<double> lo(n), hi(n);
+  for (size_t i = 0; i < n; ++i) {
+    lo[i] = -(c.right_m[i] - shrink);
+    hi[i] = c.left_m[i] - shrink;
+  }
+  // an open path starts where the car is, heading along the reference line
+  if (!c.closed) lo[0] = hi[0] = lo[1] = hi[1] = 0.0;
+
+  // plan, check the footprint along the line, narrow the corridor where it comes too close
+  std::vector<Vec2> pts(n);
+  std::vector<double> offsets;
+  for (int round = 0; round < kMaxFootprintRounds; ++round) {
+    offsets = least_curvature_offsets(c, lo, hi);
+    for (size_t i = 0; i < n; ++i) pts[i] = c.centre[i] + offsets[i] * c.normal[i];
+    bool narrowed = false;
+    line.min_clearance_m = std::numeric_limits<double>::infinity();
+    for (size_t i = 0; i < n; ++i) {
+      const core::Pose2 pose{pts[i].x(), pts[i].y(), heading_at(pts, i, c.closed)};
+      Vec2 at = Vec2::Zero();
+      const double clearance = footprint_clearance(pose, cones, f, &at);
+      if (clearance < line.min_clearance_m) {
+        line.min_clearance_m = clearance;
+        line.min_clearance_at = at;
+      }
+      if (clearance >= f.margin_m) continue;
+      // the cone's side of the reference line loses room near this point
+      const bool cone_left = c.normal[i].dot(at - c.centre[i]) > 0.0;
+      const double cut = f.margin_m - clearance + kNarrowExtraM;
+      // tapered either side, so that the line bends smoothly round the cone rather than
+      // following a step of the bound
+      for (int k = -kNarrowHalfWindow; k <= kNarrowHalfWindow; ++k) {
+        const size_t j = neighbour(i, k, n, c.closed);
+        if (!c.closed && j < 2) continue;
+        if (lo[j] >= hi[j]) continue;  // no room left to give
+        const double share = 1.0 - static_cast<double>(std::abs(k)) / (kNarrowHalfWindow + 1);
+        (cone_left ? hi[j] : lo[j]) += (cone_left ? -cut : cut) * share;
+        narrowed = true;
+      }
+    }
+    if (!narrowed) break;
+  }
+
+  // the figures of the result
+  line.path = Path{pts, c.closed};
+  line.offset_m = offsets;
+  const std::vector<double> k = curvatures(pts, c.closed);
+  line.min_width_m = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < n; ++i) {
+    if (std::abs(k[i]) > line.max_curvature) {
+      line.max_curvature = std::abs(k[i]);
+      line.max_curvature_at = pts[i];
+    }
+    if (c.left_m[i] + c.right_m[i] < line.min_width_m) {
+      line.min_width_m = c.left_m[i] + c.right_m[i];
+      line.min_width_at = c.centre[i];
+    }
+  }
+  return line;
+}
+
+RacingLine plan_racing_line(const std::vector<Vec2>& reference, bool closed,
+                            const std::vector<Vec2>& left, const std::vector<Vec2>& right,
+                            const std::vector<MapCone>& cones, const Footprint& footprint,
+                            int passes, double spacing_m) {
+  std::vector<Vec2> ref = resample(reference, spacing_m, closed);
+  RacingLine line;
+  double min_width = 0.0;
+  Vec2 min_width_at = Vec2::Zero();
+  for (int pass = 0; pass < passes; ++pass) {
+    const Corridor corridor = make_corridor(ref, closed, left, right, closed);
+    line = plan_racing_line(corridor, cones, footprint);
+    if (line.path.points.size() < 3) return line;
+    if (pass == 0) min_width = line.min_width_m, min_width_at = line.min_width_at;
+    ref = resample(line.path.points, spacing_m, closed);
+  }
+  line.min_width_m = min_width;
+  line.min_width_at = min_width_at;
+  return line;
+}
+
+}  // namespace conesim::control

@@ -1,0 +1,90 @@
+// The racing line: least curvature within the corridor, the whole footprint clear of the cones.
+
+#include "control/racing_line.hpp"
+
+#include <gtest/gtest.h>
+
+#include <numbers>
+
+#include "test_tracks.hpp"
+
+namespace conesim::control {
+namespace {
+
+using testing::CentreLine;
+using testing::circuit_from_centre;
+
+constexpr double kPi = std::numbers::pi;
+
+struct Layout {
+  std::vector<Vec2> centre, left, right;
+  std::vector<core::MapCone> cones;
+};
+
+// a closed circuit's lanes and cones
+Layout layout_of(const tracks::Track& t) {
+  Layout l{t.centre_line, t.lane_points(t.left_lane), t.lane_points(t.right_lane), {}};
+  for (const tracks::Cone& c : t.cones)
+    l.cones.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 0.01});
+  return l;
+}
+
+TEST(RacingLine, KeepsTheFootprintClearOfEveryConeWithTheMargin) {
+  // a slalom of S-bends on a 3.5 m lane and a chicane on 3 m, both closed by wide turns
+  CentreLine c;
+  c.straight(15).shift(2.0, 10.0).shift(-4.0, 10.0).shift(2.0, 10.0).straight(15);
+  c.arc(12, kPi).straight(60).arc(12, kPi);
+  for (const double width : {3.0, 3.5}) {
+    const Layout l = layout_of(circuit_from_centre(c.points(), width, 3.0));
+    const Footprint f;
+    const RacingLine line = plan_racing_line(l.centre, true, l.left, l.right, l.cones, f);
+    ASSERT_GT(line.path.points.size(), 100u);
+    // every pose along the line (heading along it) keeps the margin, less a centimetre for the
+    // check's own step
+    double worst = 1e9;
+    const std::vector<Vec2>& p = line.path.points;
+    for (size_t i = 0; i < p.size(); ++i) {
+      const Vec2 d = p[(i + 1) % p.size()] - p[(i + p.size() - 1) % p.size()];
+      worst = std::min(
+          worst, footprint_clearance({p[i].x(), p[i].y(), std::atan2(d.y(), d.x())}, l.cones, f));
+    }
+    EXPECT_GT(worst, f.margin_m - 0.01) << "width " << width;
+  }
+}
+
+TEST(RacingLine, CutsTheApexOfATurn) {
+  // a stadium with 20 m turns on 6 m lanes: the line is straighter than the centre line, on
+  // the inside at the middle of each turn and on the outside at its ends
+  CentreLine c;
+  c.straight(60).arc(20, kPi).straight(60).arc(20, kPi);
+  const Layout l = layout_of(circuit_from_centre(c.points(), 6.0, 3.0));
+  const RacingLine line = plan_racing_line(l.centre, true, l.left, l.right, l.cones, {});
+  // what it minimises, the sum of squared curvature per metre, is below the centre line's
+  auto bending = [](const std::vector<Vec2>& pts) {
+    double sum = 0.0;
+    for (const double k : curvatures(resample(pts, 1.0, true), true)) sum += k * k;
+    return sum;
+  };
+  EXPECT_LT(bending(line.path.points), bending(l.centre));
+  // at the middle of the first turn (60 + 10 pi m along, the point (80, 20)) it is inside
+  const Vec2 apex(80.0, 20.0), turn_centre(60.0, 20.0);
+  double nearest = 1e9, radius = 0.0;
+  for (const Vec2& p : line.path.points) {
+    if ((p - apex).norm() < nearest) nearest = (p - apex).norm(), radius = (p - turn_centre).norm();
+  }
+  EXPECT_LT(radius, 20.0 - 1.0);
+}
+
+TEST(RacingLine, NarrowerThanTheCarKeepsToTheMiddle) {
+  // a 1.6 m lane: no room for the car and the margin, so the line keeps to the middle
+  CentreLine c;
+  c.straight(60).arc(20, kPi).straight(60).arc(20, kPi);
+  const Layout l = layout_of(circuit_from_centre(c.points(), 1.6, 3.0));
+  const RacingLine line = plan_racing_line(l.centre, true, l.left, l.right, l.cones, {});
+  // (on the turns the polyline between cones 3 m apart cuts a few centimetres inside)
+  EXPECT_NEAR(line.min_width_m, 1.6, 0.1);
+  for (const double offset : line.offset_m) EXPECT_LT(std::abs(offset), 0.1);
+}
+
+}  // namespace
+}  // namespace conesim::control
