@@ -218,6 +218,26 @@ void extend_with_orange(const Track& track, std::vector<int>& lane,
   lane.insert(lane.begin(), before.rbegin(), before.rend());
 }
 
+// extends both open lanes with the orange cones of the pool; each cone may continue only the
+// lane it stands nearer to, so that a lane walking on through a start gate does not take the
+// gate's cone on the other side of the track
+void extend_lanes_with_orange(const Track& track, std::vector<int>& left, std::vector<int>& right,
+                              const std::vector<int>& pool) {
+  std::vector<bool> left_used(pool.size(), false), right_used(pool.size(), false);
+  const std::vector<Vec2> left_pts = positions(track, left);
+  const std::vector<Vec2> right_pts = positions(track, right);
+  if (!left_pts.empty() && !right_pts.empty()) {
+    for (size_t k = 0; k < pool.size(); ++k) {
+      const Vec2 p = track.cone(pool[k]).position;
+      const bool nearer_left = (nearest_on_polyline(p, left_pts, false) - p).norm() <=
+                               (nearest_on_polyline(p, right_pts, false) - p).norm();
+      (nearer_left ? right_used : left_used)[k] = true;
+    }
+  }
+  extend_with_orange(track, left, pool, left_used);
+  extend_with_orange(track, right, pool, right_used);
+}
+
 std::vector<int> ids_of(const Track& track, ConeClass cls) {
   std::vector<int> ids;
   for (const Cone& c : track.cones)
@@ -319,9 +339,7 @@ void rebuild_lanes(Track& track) {
     std::vector<int> pool = ids_of(track, ConeClass::kOrangeSmall);
     const std::vector<int> big = ids_of(track, ConeClass::kOrangeBig);
     pool.insert(pool.end(), big.begin(), big.end());
-    std::vector<bool> pool_used(pool.size(), false);
-    extend_with_orange(track, left, pool, pool_used);
-    extend_with_orange(track, right, pool, pool_used);
+    extend_lanes_with_orange(track, left, right, pool);
     track.closed = both_close();
   }
   track.left_lane = std::move(left);
@@ -393,9 +411,7 @@ void extend_open_lanes_with_orange(Track& track) {
     };
     if (!in(track.left_lane) && !in(track.right_lane)) pool.push_back(c.id);
   }
-  std::vector<bool> pool_used(pool.size(), false);
-  extend_with_orange(track, track.left_lane, pool, pool_used);
-  extend_with_orange(track, track.right_lane, pool, pool_used);
+  extend_lanes_with_orange(track, track.left_lane, track.right_lane, pool);
 }
 
 std::vector<Gate> gates_from_big_orange(const Track& track) {
