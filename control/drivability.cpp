@@ -21,12 +21,6 @@ constexpr double kMaxOverlapM = 0.05;
 // 1 m line would read the corner of a polyline as a tighter turn than the car drives)
 constexpr int kCurvatureStride = 3;
 
-std::string at(const Vec2& p) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "(%.1f, %.1f)", p.x(), p.y());
-  return buf;
-}
-
 }  // namespace
 
 double full_lock_radius_m(const VehicleGeometry& vehicle) {
@@ -52,7 +46,7 @@ Drivability check_drivability(const std::vector<Vec2>& left, const std::vector<V
   if (line.min_width_m < need_m) {
     char buf[160];
     std::snprintf(buf, sizeof(buf), "lanes %.2f m apart at %s, the car needs %.2f m",
-                  line.min_width_m, at(line.min_width_at).c_str(), need_m);
+                  line.min_width_m, core::format_place(line.min_width_at).c_str(), need_m);
     d.drivable = false;
     d.reason = buf;
     d.where = line.min_width_at;
@@ -73,7 +67,7 @@ Drivability check_drivability(const std::vector<Vec2>& left, const std::vector<V
     std::snprintf(buf, sizeof(buf),
                   "a turn of %.1f m radius at %s even on the widest line through the cones, the "
                   "car turns no tighter than %.1f m",
-                  d.min_line_radius_m, at(k_at).c_str(), r_car);
+                  d.min_line_radius_m, core::format_place(k_at).c_str(), r_car);
     d.drivable = false;
     d.reason = buf;
     d.where = k_at;
@@ -83,7 +77,7 @@ Drivability check_drivability(const std::vector<Vec2>& left, const std::vector<V
   // the footprint must clear the cones somewhere along the widest line
   if (line.min_clearance_m < -kMaxOverlapM) {
     d.drivable = false;
-    d.reason = "the car cannot pass the cone at " + at(line.min_clearance_at) +
+    d.reason = "the car cannot pass the cone at " + core::format_place(line.min_clearance_at) +
                " without touching it on any line";
     d.where = line.min_clearance_at;
   }

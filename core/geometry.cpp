@@ -1,6 +1,7 @@
 #include "core/geometry.hpp"
 
 #include <algorithm>
+#include <cstdio>
 
 namespace conesim::core {
 
@@ -19,6 +20,12 @@ bool segments_intersect(const Vec2& a1, const Vec2& a2, const Vec2& b1, const Ve
   const double d4 = cross(b2 - b1, a2 - b1);
   return ((d1 > 0) != (d2 > 0)) && ((d3 > 0) != (d4 > 0)) && d1 != 0 && d2 != 0 && d3 != 0 &&
          d4 != 0;
+}
+
+std::string format_place(const Vec2& p) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "(%.1f, %.1f)", p.x(), p.y());
+  return buf;
 }
 
 }  // namespace conesim::core

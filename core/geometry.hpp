@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <numbers>
+#include <string>
 
 namespace conesim::core {
 
@@ -55,12 +56,17 @@ struct Pose2 {
 };
 
 /// 2D cross product (z component of a x b).
-inline double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+inline double cross(const Vec2& a, const Vec2& b) {
+  return a.x() * b.y() - a.y() * b.x();
+}
 
 /// Distance from point p to the segment [a, b].
 double distance_to_segment(const Vec2& p, const Vec2& a, const Vec2& b);
 
 /// True when the open segments [a1, a2] and [b1, b2] cross each other.
 bool segments_intersect(const Vec2& a1, const Vec2& a2, const Vec2& b1, const Vec2& b2);
+
+/// A place for people's messages, to a decimetre: "(12.3, -4.5)".
+std::string format_place(const Vec2& p);
 
 }  // namespace conesim::core

@@ -247,13 +247,6 @@ struct CarFrame {
   }
 };
 
-// a point for messages: "(12.3, -4.5)"
-std::string place(const Vec2& p) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "(%.1f, %.1f)", p.x(), p.y());
-  return buf;
-}
-
 // how the track's boundaries are judged
 enum class Boundary { kNone, kArea, kSkidpad };
 
@@ -501,10 +494,11 @@ void Referee::Impl::judge_cones(const CarFrame& car) {
     if (dx * dx + dy * dy > cones[k].radius_m * cones[k].radius_m) continue;
     knocked[k] = 1;
     result.cones_hit.push_back(cones[k].id);
-    RefereeEvent e = event_now(RefereeEvent::Kind::kConeHit,
-                               "hit " + std::string(core::to_string(cones[k].cls)) + " cone " +
-                                   std::to_string(cones[k].id) + " at " + place(cones[k].position),
-                               cone_penalty_s);
+    RefereeEvent e =
+        event_now(RefereeEvent::Kind::kConeHit,
+                  "hit " + std::string(core::to_string(cones[k].cls)) + " cone " +
+                      std::to_string(cones[k].id) + " at " + core::format_place(cones[k].position),
+                  cone_penalty_s);
     e.cone_id = cones[k].id;
     e.cone_class = cones[k].cls;
     e.cone_position = cones[k].position;
@@ -621,7 +615,7 @@ void Referee::Impl::dnf(core::TimeUs t, const std::string& reason) {
   result.completed = false;
   // the reason says where: the middle of the car's footprint
   const CarFrame car(now_pose);
-  result.dnf_reason = reason + " at " + place(car.ahead(0.5 * (front_m - rear_m)));
+  result.dnf_reason = reason + " at " + core::format_place(car.ahead(0.5 * (front_m - rear_m)));
   close_off_course();
   result.events.push_back(event_now(RefereeEvent::Kind::kDnf, result.dnf_reason, 0.0));
   update_times(core::to_seconds(t));
@@ -652,7 +646,7 @@ void Referee::Impl::judge_off_course(const VehicleTruth& truth, const CarFrame& 
   if (off && !off_course_now) {
     ++result.off_course;
     const Vec2 centre = car.ahead(0.5 * (front_m - rear_m));
-    std::string where = "all four wheels off the track at " + place(centre);
+    std::string where = "all four wheels off the track at " + core::format_place(centre);
     if (const auto b = area.nearest_boundary(centre)) {
       char buf[96];
       std::snprintf(buf, sizeof buf, ", %.1f m from the %s boundary", b->distance_m,

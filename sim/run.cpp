@@ -189,10 +189,9 @@ tracks::Track scenario_track(const Scenario& s) {
   // laps need a circuit: an open layout (a point-to-point course) is driven once, as autocross
   if (s.event == core::EventType::kTrackdrive && !track.closed && !track.left_lane.empty() &&
       !track.right_lane.empty()) {
-    char ends[160];
-    const core::Vec2 l = track.cone(track.left_lane.back()).position;
-    const core::Vec2 r = track.cone(track.right_lane.back()).position;
-    std::snprintf(ends, sizeof ends, "(%.1f, %.1f) and (%.1f, %.1f)", l.x(), l.y(), r.x(), r.y());
+    const std::string ends = core::format_place(track.cone(track.left_lane.back()).position) +
+                             " and " +
+                             core::format_place(track.cone(track.right_lane.back()).position);
     throw core::InputError(s.track.file->string(), "event",
                            std::string("trackdrive needs a closed circuit, and this layout's "
                                        "lanes do not close (they end at ") +
