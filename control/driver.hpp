@@ -60,18 +60,20 @@ struct DriverParams {
 /// What the vehicle knows of itself apart from the estimate.
 struct VehicleGeometry {
   double wheelbase_m = 1.53;
-  double max_steer_rad = 0.4712;
+  double max_steer_rad = 0.6283;
   /// Distance from the reference point (rear axle centre) forward to the front wing, metres.
   double rear_axle_to_front_m = 2.25;
   /// Distance from the rear axle back to the rear end of the car, and the car's width, metres.
   double rear_axle_to_back_m = 0.65;
   double width_m = 1.4;
-  /// Yaw rate at a steering angle over the kinematic v tan(d) / L, measured on the MuJoCo car
-  /// with anti-Ackermann steering at 2-6 m/s (tests/sim/vehicle_sim_test.cpp,
-  /// FullLockCircleAtLowSpeed: the front tyres fight at large angles, so full lock turns the
-  /// rear axle on 4.4 m, not the kinematic 3.0 m); pairs of (angle rad, gain), angles rising.
+  /// Yaw rate at a steering angle over the kinematic v tan(d) / L at low speed: the front tyres
+  /// of an anti-Ackermann car fight at large angles, so the car turns wider than the kinematic
+  /// radius (full lock: 2.9 m at the rear axle, not 2.1). Pairs of (angle rad, gain), angles
+  /// rising. These are the default car's, as sim::measure_yaw_gain measures them in MuJoCo
+  /// (tests/sim/vehicle_sim_test.cpp holds the two equal); `conesim run` measures any other car.
   std::vector<std::pair<double, double>> yaw_gain = {
-      {0.0, 1.0}, {0.2007, 0.914}, {0.2967, 0.821}, {0.3840, 0.754}, {0.4712, 0.688}};
+      {0.0, 1.0},      {0.1047, 0.998}, {0.2094, 0.929}, {0.3141, 0.870},
+      {0.4189, 0.818}, {0.5236, 0.769}, {0.6283, 0.721}};
   /// What the car can do over speed at its full measured grip; the driver plans with
   /// DriverParams::grip_fraction of it.
   vehicle_models::PerformanceEnvelope envelope;

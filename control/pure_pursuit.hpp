@@ -15,7 +15,7 @@ struct PurePursuitParams {
   /// Wheelbase of the single-track model, metres.
   double wheelbase_m = 1.53;
   /// Largest steering angle commanded, radians.
-  double max_steer_rad = 0.4712;
+  double max_steer_rad = 0.6283;
   /// Look-ahead distance = max(lookahead_min_m, lookahead_gain_s * speed).
   double lookahead_min_m = 3.0;
   double lookahead_gain_s = 0.35;
@@ -43,7 +43,7 @@ Vec2 lookahead_point(const Path& path, const PathProjection& from, const Vec2& p
 /// heading error, with the error dynamics of a damped second-order system over distance.
 struct TrackerParams {
   double wheelbase_m = 1.53;
-  double max_steer_rad = 0.4712;
+  double max_steer_rad = 0.6283;
   /// Natural frequency of the error dynamics per metre driven, capped in time, rad/m and rad/s.
   double frequency_per_m = 0.5;
   double max_frequency_rps = 3.0;

@@ -127,8 +127,8 @@ control::VehicleGeometry driver_vehicle(const vehicle_models::VehicleParams& vp)
   g.rear_axle_to_back_m = vp.length_m - vp.front_overhang_from_rear_axle_m;
   g.width_m = vp.width_m;
   g.envelope = vehicle_models::PerformanceEnvelope::of(vp, 1.0);
-  // the measured yaw loss is the anti-Ackermann car's; Ackermann steering keeps within 1.4 %
-  if (vp.ackermann_factor >= 0.0) g.yaw_gain.clear();
+  // the yaw gain table the driver carries is the default car's; any other car is measured
+  if (!(vp == vehicle_models::VehicleParams{})) g.yaw_gain = measure_yaw_gain(vp);
   return g;
 }
 

@@ -189,8 +189,10 @@ VehicleTruth VehicleSim::truth() const {
   const mjtNum* pos = data_->xpos + 3 * chassis_body_;
   const mjtNum* R = data_->xmat + 9 * chassis_body_;
   t.pose = {pos[0], pos[1], std::atan2(R[3], R[0])};
+  // mjOBJ_XBODY: at the body frame's origin, the rear axle centre (mjOBJ_BODY would give the
+  // velocity of the centre of mass, in the principal axes of inertia)
   mjtNum vel[6];
-  mj_objectVelocity(model_, data_, mjOBJ_BODY, chassis_body_, vel, 1);
+  mj_objectVelocity(model_, data_, mjOBJ_XBODY, chassis_body_, vel, 1);
   t.vx_mps = vel[3];
   t.vy_mps = vel[4];
   t.yaw_rate_rps = vel[2];
@@ -203,6 +205,29 @@ VehicleTruth VehicleSim::truth() const {
     t.wheel_positions[c] = {k[0], k[1]};
   }
   return t;
+}
+
+std::vector<std::pair<double, double>> measure_yaw_gain(const vehicle_models::VehicleParams& params,
+                                                        int points) {
+  constexpr double kSpeedMps = 4.0;  // walking pace of a hairpin: the fight, not the grip
+  constexpr double kSettleS = 4.0, kMeasureS = 3.0;
+  std::vector<std::pair<double, double>> table = {{0.0, 1.0}};
+  for (int i = 1; i <= points; ++i) {
+    const double steer = params.max_steer_rad * i / points;
+    VehicleSim car(params, {});
+    double t = 0.0, yaw = 0.0, kinematic = 0.0;
+    while (t < kSettleS + kMeasureS) {
+      const VehicleTruth tr = car.truth();
+      if (t >= kSettleS) {
+        yaw += std::abs(tr.yaw_rate_rps);
+        kinematic += std::hypot(tr.vx_mps, tr.vy_mps) * std::tan(steer) / params.wheelbase_m;
+      }
+      car.step({steer, std::clamp(3.0 * (kSpeedMps - tr.vx_mps), -5.0, 5.0), false});
+      t += car.timestep_s();
+    }
+    table.emplace_back(steer, kinematic > 0.0 ? yaw / kinematic : 1.0);
+  }
+  return table;
 }
 
 }  // namespace conesim::sim

@@ -8,6 +8,8 @@
 #include <array>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "core/autonomy_types.hpp"
 #include "core/geometry.hpp"
@@ -88,5 +90,13 @@ class VehicleSim {
   std::array<int, 4> drive_actuator_{};
   double steer_rad_ = 0.0;
 };
+
+/// The car's yaw gain over steering angle at low speed: the yaw rate at a held single-track angle
+/// over the kinematic v tan(d) / L, measured by driving this car in MuJoCo at 4 m/s at each of
+/// `points` angles evenly up to full lock (7 s of simulated time each, 0.06 s of CPU).
+/// Pairs of (angle rad, gain) with (0, 1) first, angles rising: the steering tracker's table.
+/// Anti-Ackermann front tyres fight at large angles, so the gain falls below 1 there.
+std::vector<std::pair<double, double>> measure_yaw_gain(const vehicle_models::VehicleParams& params,
+                                                        int points = 6);
 
 }  // namespace conesim::sim

@@ -9,9 +9,15 @@ namespace conesim::vehicle_models {
 /// - mass 250 kg, wheelbase 1.53 m, 45/55 front/rear, track 1.2 m, CoG 0.30 m, tyre radius
 ///   0.23 m and width 0.2 m: a typical FS electric car (the RaceUp and FST theses quote
 ///   1.53-1.55 m wheelbase and 1.2 m track; 10-inch rims with 0.46 m tyres).
-/// - steering 27 degrees at the wheels with 2.5 rad/s rate: FS steering racks give 25-30 degrees;
-///   driverless steering actuators reach full lock in about 0.2 s.
-/// - anti-Ackermann factor -1: the RaceUp car (outer wheel steers more).
+/// - steering 36 degrees single-track at full lock with 2.5 rad/s rate, anti-Ackermann factor -0.3
+///   (outer wheel 38 degrees, inner 33): what a car needs to turn an FSG minimum hairpin (9 m
+///   outside diameter) with its whole footprint inside the cones. In this contact model the front
+///   tyres fight once they point different ways (no slip-angle curve to share the load), so the
+///   car turns wider than the kinematic radius: at full lock the rear axle circles on 2.9 m (1.53 m
+///   / tan 36 deg = 2.1 kinematic) and the outer front corner sweeps 8.5 m across. The earlier
+///   defaults, 27 degrees with full anti-Ackermann (-1, the RaceUp car), turned on 4.4 m and swept
+///   11.1 m: no FSG minimum hairpin without cones (docs: README, vehicle). Driverless steering
+///   actuators reach full lock in about 0.25 s.
 /// - four 250 N m wheel motors, 80 kW total: the 4WD hub-motor cars of the top FS teams
 ///   (FSG power limit 80 kW).
 /// - brakes 600 N m per wheel: enough to lock a loaded wheel; ABS limits the slip.
@@ -37,10 +43,10 @@ struct VehicleParams {
   double front_overhang_from_rear_axle_m = 2.25;
 
   // steering
-  double max_steer_rad = 0.4712;  // 27 degrees
+  double max_steer_rad = 0.6283;  // 36 degrees
   double max_steer_rate_rps = 2.5;
   /// 1 full Ackermann, 0 parallel steer, negative anti-Ackermann.
-  double ackermann_factor = -1.0;
+  double ackermann_factor = -0.3;
 
   // drivetrain and brakes
   double max_torque_front_nm = 250.0;  // per wheel
@@ -68,6 +74,8 @@ struct VehicleParams {
 
   /// Empty when every value is usable; otherwise "key: what was expected" for the first bad one.
   std::string validate() const;
+
+  bool operator==(const VehicleParams&) const = default;
 };
 
 }  // namespace conesim::vehicle_models

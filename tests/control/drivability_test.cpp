@@ -66,15 +66,21 @@ tracks::Track hairpin_stadium(double outer_diameter_m, double width_m) {
   return circuit_from_centre(c.points(), width_m, 2.5);
 }
 
-TEST(Drivability, RefusesTheFsgMinimumHairpinWithThreeMetreLanes) {
-  // 9 m outside diameter with 3 m lanes: the rear axle would have to turn on 3 m, where the
-  // car's full lock turns it on 4.4 m (and the front overhang would sweep over the outer cones)
-  const Drivability d = check(hairpin_stadium(9.0, 3.0));
+TEST(Drivability, RefusesAHairpinTighterThanTheCarTurns) {
+  // 7 m outside diameter with 3 m lanes: the rear axle would have to turn on 2 m, where the
+  // car's full lock turns it on 2.9 m (and the front overhang would sweep over the outer cones)
+  const Drivability d = check(hairpin_stadium(7.0, 3.0));
   std::printf("refused: %s\n", d.reason.c_str());
   EXPECT_FALSE(d.drivable);
   EXPECT_NE(d.reason.find(" at ("), std::string::npos) << d.reason;
   // the place is in one of the hairpins (x < 0 or x > 40)
   EXPECT_TRUE(d.where.x() < 1.0 || d.where.x() > 39.0) << d.where.transpose();
+}
+
+TEST(Drivability, AcceptsTheFsgMinimumHairpinWithThreeMetreLanes) {
+  // 9 m outside diameter (FSG's minimum) with 3 m lanes: every FS car must turn it
+  const Drivability d = check(hairpin_stadium(9.0, 3.0));
+  EXPECT_TRUE(d.drivable) << d.reason;
 }
 
 TEST(Drivability, AcceptsAHairpinTheCarCanTurn) {
@@ -95,8 +101,8 @@ TEST(Drivability, AcceptsEveryRuleCompliantGeneratedCircuit) {
 }
 
 TEST(Drivability, FullLockRadiusIsTheMeasuredOne) {
-  // 1.53 m / tan(27 deg) = 3.0 m kinematic, 4.36 m measured on the MuJoCo car
-  EXPECT_NEAR(full_lock_radius_m(VehicleGeometry{}), 4.36, 0.05);
+  // 1.53 m / tan(36 deg) = 2.1 m kinematic, 2.92 m measured on the MuJoCo car
+  EXPECT_NEAR(full_lock_radius_m(VehicleGeometry{}), 2.92, 0.05);
 }
 
 }  // namespace

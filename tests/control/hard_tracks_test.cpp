@@ -42,8 +42,16 @@ void expect_clean(const LoopResult& r) {
   EXPECT_GT(r.min_clearance_m, kMinClearanceM);
 }
 
-TEST(HardTracks, TightestHairpinTheCarTurns) {
-  // 14 m outside diameter with 4 m lanes: the rear axle turns on about 5 m, near full lock
+TEST(HardTracks, FsgMinimumHairpin) {
+  // 9.2 m outside diameter with 3 m lanes (the generator's minimum hairpins): the rear axle
+  // turns on about 3 m, on full lock, the front corner within 0.2 m of the outer cones
+  CentreLine c;
+  c.straight(40).arc(3.1, kPi).straight(40).arc(3.1, kPi);
+  expect_clean(drive(circuit_from_centre(c.points(), 3.0, 2.0), "hairpin 9.2 m / 3 m"));
+}
+
+TEST(HardTracks, WideHairpin) {
+  // 14 m outside diameter with 4 m lanes
   CentreLine c;
   c.straight(40).arc(5.0, kPi).straight(40).arc(5.0, kPi);
   expect_clean(drive(circuit_from_centre(c.points(), 4.0, 2.5), "hairpin 14 m / 4 m"));

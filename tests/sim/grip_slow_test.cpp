@@ -12,6 +12,7 @@
 #include <numbers>
 #include <vector>
 
+#include "core/cone.hpp"
 #include "laptime/qss.hpp"
 #include "sim/vehicle_sim.hpp"
 #include "vehicle_models/performance.hpp"
@@ -141,16 +142,15 @@ TEST(MeasuredGrip, AccelerationMatchesTheStandingStartBound) {
   EXPECT_LE(t_s, bound.total_time_s * 1.10);
 }
 
-TEST(MeasuredGrip, FullLockSweepsWiderThanTheFsgMinimumHairpin) {
-  // at walking pace on full lock the car turns a rear-axle circle of 8.7 m, not the kinematic
-  // 6.0 m (L / tan 27 deg): the anti-Ackermann front tyres fight (VEHICLE_NOTES: -18 % yaw rate
-  // at 17 deg). Its outer front corner sweeps 11.0-11.2 m across, more than an FSG minimum
-  // hairpin (9 m outside diameter) holds: the generator's minimum hairpins are not drivable by
-  // this car without cones; --hairpin-diameter 12 makes ones it can turn
+TEST(MeasuredGrip, FullLockFitsTheFsgMinimumHairpin) {
+  // at walking pace on full lock the car turns a rear-axle circle of 5.8 m, not the kinematic
+  // 4.2 m (L / tan 36 deg): the anti-Ackermann front tyres fight. Its outer front corner sweeps
+  // 8.5 m across: inside an FSG minimum hairpin (9 m outside diameter, cones of 0.23 m base on
+  // it leave 8.77 m); the car's inner side stays outside the 3 m inner diameter of 3 m lanes
   const VehicleParams p;
   VehicleSim car(p, {});
   double t = 0.0;
-  Eigen::AlignedBox2d rear, corner;
+  Eigen::AlignedBox2d rear, corner, inner;
   while (t < 25.0) {
     const VehicleTruth tr = car.truth();
     car.step({p.max_steer_rad, std::clamp(3.0 * (3.0 - tr.vx_mps), -5.0, 5.0), false});
@@ -158,15 +158,16 @@ TEST(MeasuredGrip, FullLockSweepsWiderThanTheFsgMinimumHairpin) {
     if (t < 12.0) continue;  // a full circle after settling
     rear.extend(tr.pose.position());
     corner.extend(tr.pose.transform({p.front_overhang_from_rear_axle_m, -0.5 * p.width_m}));
+    inner.extend(tr.pose.transform({0.0, 0.5 * p.width_m}));  // nearest the centre
   }
   const double rear_d = rear.sizes().x(), swept_d = corner.sizes().x();
   std::printf(
       "full lock at 3 m/s: rear axle circle %.2f m across (kinematic %.2f m), outer front "
-      "corner %.2f m\n",
-      rear_d, 2.0 * p.wheelbase_m / std::tan(p.max_steer_rad), swept_d);
+      "corner %.2f m, inner side %.2f m\n",
+      rear_d, 2.0 * p.wheelbase_m / std::tan(p.max_steer_rad), swept_d, inner.sizes().x());
   EXPECT_GT(rear_d, 2.0 * p.wheelbase_m / std::tan(p.max_steer_rad));
-  EXPECT_GT(swept_d, 9.0);
-  EXPECT_LT(swept_d, 12.0);
+  EXPECT_LT(swept_d, 9.0 - core::cone_size(core::ConeClass::kBlue).base_m);
+  EXPECT_GT(inner.sizes().x(), 3.0 + core::cone_size(core::ConeClass::kBlue).base_m);
 }
 
 }  // namespace

@@ -99,9 +99,9 @@ TEST(VehicleSim, VehicleFrameSitsOnTheGroundUnderTheRearAxle) {
 }
 
 // the tightest circle the car drives on full lock at low speed: the anti-Ackermann front tyres
-// fight, so it is wider than the kinematic wheelbase / tan(max steer) = 3.0 m. Measured at 2, 4
-// and 6 m/s: 8.2-8.6 m at 11.5 deg (kinematic 7.5), 6.1-6.3 at 17 (5.0), 5.0-5.2 at 22 (3.8),
-// 4.36-4.45 at 27 (3.0). The driver's yaw-gain table and the drivability check use these.
+// fight, so it is wider than the kinematic wheelbase / tan(max steer) = 2.1 m. Measured at 2 and
+// 6 m/s: 2.89-2.94 m. The driver's table and
+// the drivability check use these.
 TEST(VehicleSim, FullLockCircleIsTheDriversFigure) {
   const VehicleParams params;
   for (const double speed : {2.0, 6.0}) {
@@ -118,6 +118,27 @@ TEST(VehicleSim, FullLockCircleIsTheDriversFigure) {
     std::printf("measured: %.0f m/s on full lock: rear-axle radius %.2f m\n", speed, radius);
     EXPECT_NEAR(radius, control::full_lock_radius_m(control::VehicleGeometry{}), 0.15);
   }
+}
+
+// the driver carries the default car's yaw gain table; it is what measure_yaw_gain gives
+TEST(VehicleSim, DriversYawGainTableIsTheMeasuredOne) {
+  const auto measured = measure_yaw_gain(VehicleParams{});
+  const auto table = control::VehicleGeometry{}.yaw_gain;
+  ASSERT_EQ(measured.size(), table.size());
+  for (size_t i = 0; i < table.size(); ++i) {
+    EXPECT_NEAR(measured[i].first, table[i].first, 1e-4);
+    EXPECT_NEAR(measured[i].second, table[i].second, 0.002) << "at " << table[i].first << " rad";
+  }
+  // the fight: near 1 for small angles, well below at full lock
+  EXPECT_GT(measured[1].second, 0.98);
+  EXPECT_LT(measured.back().second, 0.8);
+}
+
+// a car with full Ackermann steering has no fight: the gain stays near 1 up to full lock
+TEST(VehicleSim, AckermannCarTurnsAtTheKinematicRadius) {
+  VehicleParams p;
+  p.ackermann_factor = 1.0;
+  for (const auto& [steer, gain] : measure_yaw_gain(p, 3)) EXPECT_NEAR(gain, 1.0, 0.03) << steer;
 }
 
 }  // namespace
