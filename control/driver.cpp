@@ -6,6 +6,7 @@
 
 #include "control/drivability.hpp"
 #include "control/lap_line.hpp"
+#include "control/manoeuvre.hpp"
 #include "control/path.hpp"
 #include "control/path_planner.hpp"
 #include "control/pure_pursuit.hpp"
@@ -60,6 +61,13 @@ constexpr double kEndOfPathDecelShare = 0.5;
 constexpr double kMinLapDistanceM = 50.0;
 // a steering command this share of full lock or more slows the car to the tight-turn speed
 constexpr double kSteerSaturationShare = 0.9;
+// a path that asks for this share of the steering's curvature within the distance ahead, or
+// steering this share of full lock now, hands the steering to the manoeuvre search
+constexpr double kManoeuvreCurvatureShare = 0.75;
+constexpr double kManoeuvreSteerShare = 0.6;
+// the manoeuvre search looks this far ahead at least, metres, and over this time, s
+constexpr double kManoeuvreAheadM = 6.0;
+constexpr double kManoeuvreAheadS = 1.5;
 // the lap line is searched among the big orange cones while the car is this close to the
 // start (by distance travelled), metres
 constexpr double kLapLineSearchOdometerM = 40.0;
@@ -146,6 +154,7 @@ struct Driver::Impl {
   PurePursuitParams pursuit;
   TrackerParams tracker;
   TrackerParams fast_tracker;
+  ManoeuvreParams manoeuvre;
   // the car's limits at the grip fraction planned for, and its footprint with the margin
   vehicle_models::PerformanceEnvelope envelope;
   Footprint footprint;
@@ -157,6 +166,15 @@ struct Driver::Impl {
   Pose2 start;
   Vec2 last_position = Vec2::Zero();
   Vec2 last_front = Vec2::Zero();
+  // the driver's model of the steering actuator: the angle now and the last command
+  double steer_now = 0.0;
+  double last_steer_command = 0.0;
+  core::TimeUs last_stamp = 0;
+  // the input of the update in progress
+  const DriverInput* input = nullptr;
+  // the manoeuvre under way near full lock, and when it was chosen
+  std::optional<Manoeuvre> manoeuvre_now;
+  core::TimeUs manoeuvre_stamp = 0;
 
   // the path followed, its speed profile and the car's progress along it
   Path path;
@@ -197,12 +215,23 @@ struct Driver::Impl {
     envelope.max_drive_force_n *= p.grip_fraction;
     footprint = {v.rear_axle_to_front_m, v.rear_axle_to_back_m, 0.5 * v.width_m,
                  p.footprint_margin_m};
+    manoeuvre.wheelbase_m = v.wheelbase_m;
+    manoeuvre.max_steer_rad = v.max_steer_rad;
+    manoeuvre.max_steer_rate_rps = v.max_steer_rate_rps;
+    manoeuvre.yaw_gain = v.yaw_gain;
+    manoeuvre.footprint = footprint;
   }
 
   // one update: bookkeeping, then the event's mission
   VehicleCommand update(const DriverInput& in) {
     const Pose2& pose = in.estimate.pose;
     if (!started) begin(in);
+    input = &in;
+    // the steering moved towards the last command at its rate since the last update
+    const double dt = std::max(0.0, core::to_seconds(in.estimate.stamp - last_stamp));
+    const double max_change = vehicle.max_steer_rate_rps * dt;
+    steer_now += std::clamp(last_steer_command - steer_now, -max_change, max_change);
+    last_stamp = in.estimate.stamp;
     const Vec2 front = pose.transform({vehicle.rear_axle_to_front_m, 0.0});
     status.odometer_m += (pose.position() - last_position).norm();
 
@@ -230,6 +259,8 @@ struct Driver::Impl {
       status.target_speed_mps = 0.0;
     }
     status.state = phase_name(phase);
+    last_steer_command = std::clamp(cmd.steer_rad, -vehicle.max_steer_rad, vehicle.max_steer_rad);
+    input = nullptr;
     last_position = pose.position();
     last_front = front;
     return cmd;
@@ -240,6 +271,7 @@ struct Driver::Impl {
     started = true;
     start = in.estimate.pose;
     last_position = start.position();
+    last_stamp = in.estimate.stamp;
     last_front = start.transform({vehicle.rear_axle_to_front_m, 0.0});
     lap_line = lap_line_at(last_front, start, kFallbackLineHalfWidthM);
     switch (event) {
@@ -289,6 +321,26 @@ struct Driver::Impl {
       const double ahead = s_here + preview_s * std::max(0.0, est.speed_mps);
       cmd.steer_rad = track_path(fast ? fast_tracker : tracker, est.pose, est.speed_mps, path, here,
                                  curvature_at(s, ahead));
+      // near full lock: the manoeuvre that keeps the footprint clearest, tried out
+      if (input && tight_ahead(s, s_here, est.speed_mps)) {
+        const double reach = std::max(est.speed_mps, 8.0) * manoeuvre.horizon_s + 4.0;
+        std::optional<Manoeuvre> previous;
+        if (manoeuvre_now)
+          previous = manoeuvre_now->advanced(core::to_seconds(est.stamp - manoeuvre_stamp));
+        ManoeuvreParams mp = manoeuvre;
+        mp.tracker = fast ? fast_tracker : tracker;
+        mp.preview_s = preview_s;
+        mp.curvature_span_m = 2.0 * kCurvatureSpanM;
+        const ManoeuvreChoice choice =
+            choose_manoeuvre(mp, est.pose, est.speed_mps, steer_now, path, here, profile,
+                             lap_m, cones_near(est, input->observations, reach), cmd.steer_rad,
+                             previous ? &*previous : nullptr);
+        manoeuvre_now = choice.manoeuvre;
+        manoeuvre_stamp = est.stamp;
+        cmd.steer_rad = choice.steer_rad;
+      } else {
+        manoeuvre_now.reset();
+      }
     } else {
       cmd.steer_rad = pure_pursuit(pursuit, est.pose, est.speed_mps, path, here).steer_rad;
     }
@@ -300,19 +352,25 @@ struct Driver::Impl {
     return cmd;
   }
 
-  // the path's curvature at arc length `at`, averaged over a short span (s: arc lengths)
-  double curvature_at(const std::vector<double>& s, double at) const {
+  // whether the path ahead (or the steering now) needs most of the steering's range
+  bool tight_ahead(const std::vector<double>& s, double s_here, double speed) const {
+    if (std::abs(steer_now) >= kManoeuvreSteerShare * vehicle.max_steer_rad) return true;
+    const double limit = kManoeuvreCurvatureShare / full_lock_radius_m(vehicle);
     const std::vector<double> k = curvatures(path.points, path.closed);
     const double lap = path.closed ? s.back() : 0.0;
-    double sum = 0.0;
-    for (int m = -2; m <= 2; ++m) {
-      double q = at + 0.5 * m * kCurvatureSpanM;
-      q = lap > 0.0 ? std::fmod(std::fmod(q, lap) + lap, lap) : std::clamp(q, 0.0, s.back());
-      // the point at or before q
-      const auto it = std::upper_bound(s.begin(), s.begin() + static_cast<long>(k.size()), q);
-      sum += k[it == s.begin() ? 0 : static_cast<size_t>(it - s.begin()) - 1];
+    const double ahead = std::max(kManoeuvreAheadM, kManoeuvreAheadS * std::max(0.0, speed));
+    for (size_t i = 0; i < k.size(); ++i) {
+      double d = s[i] - s_here;
+      if (lap > 0.0 && d < 0.0) d += lap;
+      if (d >= -1.0 && d <= ahead && std::abs(k[i]) >= limit) return true;
     }
-    return sum / 5.0;
+    return false;
+  }
+
+  // the path's curvature at arc length `at`, averaged over a short span (s: arc lengths)
+  double curvature_at(const std::vector<double>& s, double at) const {
+    return curvature_near(path, s, curvatures(path.points, path.closed), at,
+                          2.0 * kCurvatureSpanM);
   }
 
   // the profile speed a short preview ahead of s

@@ -61,6 +61,8 @@ struct DriverParams {
 struct VehicleGeometry {
   double wheelbase_m = 1.53;
   double max_steer_rad = 0.6283;
+  /// How fast the steering turns, rad/s.
+  double max_steer_rate_rps = 2.5;
   /// Distance from the reference point (rear axle centre) forward to the front wing, metres.
   double rear_axle_to_front_m = 2.25;
   /// Distance from the rear axle back to the rear end of the car, and the car's width, metres.

@@ -134,4 +134,19 @@ std::vector<double> curvatures(const std::vector<Vec2>& points, bool closed, int
   return k;
 }
 
+double curvature_near(const Path& path, const std::vector<double>& s, const std::vector<double>& k,
+                      double at, double span_m) {
+  if (k.empty()) return 0.0;
+  const double lap = path.closed ? s.back() : 0.0;
+  double sum = 0.0;
+  for (int m = -2; m <= 2; ++m) {
+    double q = at + 0.25 * m * span_m;
+    q = lap > 0.0 ? std::fmod(std::fmod(q, lap) + lap, lap) : std::clamp(q, 0.0, s.back());
+    // the point at or before q
+    const auto it = std::upper_bound(s.begin(), s.begin() + static_cast<long>(k.size()), q);
+    sum += k[it == s.begin() ? 0 : static_cast<size_t>(it - s.begin()) - 1];
+  }
+  return sum / 5.0;
+}
+
 }  // namespace conesim::control

@@ -52,6 +52,12 @@ std::vector<Vec2> smooth(const std::vector<Vec2>& points, int half_window, bool 
 /// before and after it; an open path copies the nearest computable value to its ends.
 std::vector<double> curvatures(const std::vector<Vec2>& points, bool closed, int stride = 2);
 
+/// The curvature `k` (one value per point of `path`, s: its arc lengths) at arc length `at`,
+/// averaged over five samples spread over `span_m` (wrapping on a closed path, clamped on an
+/// open one): what a tracker feeds forward.
+double curvature_near(const Path& path, const std::vector<double>& s, const std::vector<double>& k,
+                      double at, double span_m);
+
 /// Signed curvature of the circle through three points (0 when they are collinear).
 double three_point_curvature(const Vec2& a, const Vec2& b, const Vec2& c);
 

@@ -123,6 +123,7 @@ control::VehicleGeometry driver_vehicle(const vehicle_models::VehicleParams& vp)
   control::VehicleGeometry g;
   g.wheelbase_m = vp.wheelbase_m;
   g.max_steer_rad = vp.max_steer_rad;
+  g.max_steer_rate_rps = vp.max_steer_rate_rps;
   g.rear_axle_to_front_m = vp.front_overhang_from_rear_axle_m;
   g.rear_axle_to_back_m = vp.length_m - vp.front_overhang_from_rear_axle_m;
   g.width_m = vp.width_m;
