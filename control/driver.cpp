@@ -54,6 +54,9 @@ constexpr double kSameConeM = 0.7;
 constexpr double kExploreHorizonM = 25.0;
 // a local path shorter than this is not trusted: the previous one is kept, metres
 constexpr double kMinLocalPathM = 4.0;
+// a local path shorter than this ends where the cones end (the end of an open course): the car
+// plans to stop at its end, metres
+constexpr double kCourseEndPathM = 15.0;
 // share of the braking limit planned for stopping at the end of the known path
 constexpr double kEndOfPathDecelShare = 0.5;
 // a lap counts only after this distance since the previous one (or the start), metres (the
@@ -536,7 +539,12 @@ struct Driver::Impl {
       status.problem = local.points.size() < 2 ? "no path through the cones ahead" : "";
       if (local.length() >= kMinLocalPathM || path.points.size() < 2) {
         path = local;
-        const double end_v = std::sqrt(2.0 * kEndOfPathDecelShare * decel_cap() * path.length());
+        // a short path is where the cones end (an open course's end): stop there; a longer one
+        // reaches as far as the car sees, and grows as it goes
+        const double end_v =
+            path.length() < kCourseEndPathM
+                ? 0.0
+                : std::sqrt(2.0 * kEndOfPathDecelShare * decel_cap() * path.length());
         profile = plan_speed(path, limits(params.explore_speed_mps), est.speed_mps, end_v);
         lap_m = 0.0;
         track_progress = false;
@@ -591,6 +599,14 @@ struct Driver::Impl {
     phase = Phase::kFast;
   }
 };
+
+double acceleration_stop_past_finish_m(const DriverParams& params, const VehicleGeometry& vehicle,
+                                       double finish_speed_mps) {
+  const double v = std::max(0.0, finish_speed_mps);
+  const double braking = v * v / (2.0 * kBrakingZoneDecelShare * params.max_decel_mps2);
+  return std::min(kBrakePastFinishM + vehicle.rear_axle_to_front_m + braking,
+                  kBrakingZoneM - kBrakingZoneMarginM);
+}
 
 Driver::Driver(core::EventType event, const DriverParams& params, const VehicleGeometry& vehicle,
                std::vector<core::MapCone> prior_map)

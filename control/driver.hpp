@@ -108,6 +108,12 @@ struct DriverStatus {
   std::string problem;
 };
 
+/// Acceleration: how far past the finish line the front of the car comes to rest at most when
+/// it crosses the line at `finish_speed_mps` (the driver brakes just past the line, or earlier
+/// so as to stop inside FSG's braking zone less a margin), metres.
+double acceleration_stop_past_finish_m(const DriverParams& params, const VehicleGeometry& vehicle,
+                                       double finish_speed_mps);
+
 /// One driver per run; not copyable (holds the mission state).
 class Driver {
  public:

@@ -3,17 +3,20 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 
 #include "control/drivability.hpp"
 #include "control/driver.hpp"
 #include "core/error.hpp"
+#include "laptime/qss.hpp"
 #include "sim/lap_time_report.hpp"
 #include "sim/report.hpp"
 #include "sim/slam_runner.hpp"
 #include "sim/track_commands.hpp"
 #include "sim/vehicle_sim.hpp"
+#include "tracks/fsg_layouts.hpp"
 #include "tracks/io.hpp"
 #include "tracks/rules.hpp"
 
@@ -165,7 +168,59 @@ nlohmann::json events_json(const std::vector<RefereeEvent>& events) {
 
 }  // namespace
 
+namespace {
+
+// acceleration: the braking zone against where the driver stops (it plans for FSG's zone: a
+// shorter one, which it cannot see the end of in time, is overrun)
+std::string acceleration_problem(const Scenario& s, const tracks::Track& track) {
+  if (track.timing_gates.size() < 2) return {};  // the FSG distances are assumed
+  const core::Vec2 forward = track.start.heading();
+  const tracks::Gate& start = track.timing_gates.front();
+  const tracks::Gate& finish = track.timing_gates[1];
+  const core::Vec2 start_mid = 0.5 * (start.left + start.right);
+  const core::Vec2 finish_mid = 0.5 * (finish.left + finish.right);
+  const double finish_along = (finish_mid - start_mid).dot(forward);
+  double farthest = -std::numeric_limits<double>::infinity();
+  core::Vec2 last = finish_mid;
+  for (const tracks::Cone& c : track.cones) {
+    const double along = (c.position - start_mid).dot(forward);
+    if (along > farthest) farthest = along, last = c.position;
+  }
+  if (finish_along <= 1.0 || farthest <= finish_along + 1.0) return {};  // no zone marked
+  const double zone_m = farthest - finish_along;
+
+  // the speed at the line: the driver's cap, or what the car reaches from a standing start
+  std::vector<double> along, flat;
+  for (double x = 0.0; x <= finish_along; x += 1.0) along.push_back(x), flat.push_back(0.0);
+  const laptime::SpeedTrace launch = laptime::standing_start(
+      along, flat, vehicle_models::PerformanceEnvelope::of(s.vehicle, 1.0));
+  const double v = std::min(s.driver.acceleration_speed_mps, launch.speed_mps.back());
+  const control::VehicleGeometry geometry = driver_vehicle(s.vehicle);
+  const double stop_m = control::acceleration_stop_past_finish_m(s.driver, geometry, v);
+  if (stop_m <= zone_m) return {};
+  // the fastest crossing the driver stops from inside this zone (half a metre to spare)
+  double lo = 0.0, hi = v;
+  for (int i = 0; i < 40; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (control::acceleration_stop_past_finish_m(s.driver, geometry, mid) <= zone_m - 0.5
+         ? lo
+         : hi) = mid;
+  }
+  char buf[400];
+  std::snprintf(buf, sizeof(buf),
+                "the braking zone is %.1f m long (finish gate at %s, last cone at %s), and the "
+                "driver, crossing the line at %.1f m/s, stops %.1f m past it (it brakes for "
+                "FSG's %.0f m zone, whose end it cannot see in time); it fits with "
+                "driver.acceleration_speed_mps=%.0f",
+                zone_m, core::format_place(finish_mid).c_str(), core::format_place(last).c_str(),
+                v, stop_m, tracks::kAccelerationBrakingZoneM, std::floor(lo));
+  return buf;
+}
+
+}  // namespace
+
 std::string drivability_problem(const Scenario& s, const tracks::Track& track) {
+  if (s.event == core::EventType::kAcceleration) return acceleration_problem(s, track);
   if (s.event != core::EventType::kAutocross && s.event != core::EventType::kTrackdrive) return {};
   // a car that starts off the track finds no path through the cones
   for (const tracks::Violation& v : tracks::check_rules(track, s.event))

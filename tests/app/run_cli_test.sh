@@ -109,4 +109,29 @@ expect_text blind_slam "$work/out" '^fail: SLAM map missed fraction of the cones
 check seeing_slam 0 "$bin" run acceleration-graphslam --no-plot --out "$work/seeing"
 expect_text seeing_slam "$work/seeing/metrics.json" '"map_missed": 0,'
 
+# an acceleration layout whose braking zone (25 m) is shorter than where the driver stops:
+# refused before the run, naming the zone's ends and a speed that fits; that speed runs clean
+{
+  echo 'tag,x,y,direction,x_variance,y_variance,xy_covariance'
+  echo 'car_start,-0.3,0.0,0.0,0.0,0.0,0.0'
+  for x in 0 75; do
+    echo "big_orange,$x,1.5,0.0,0.0,0.0,0.0"
+    echo "big_orange,$x,-1.5,0.0,0.0,0.0,0.0"
+  done
+  for x in $(seq 5 5 70); do
+    echo "blue,$x,1.5,0.0,0.0,0.0,0.0"
+    echo "yellow,$x,-1.5,0.0,0.0,0.0,0.0"
+  done
+  for x in $(seq 80 5 100); do
+    echo "orange,$x,1.5,0.0,0.0,0.0,0.0"
+    echo "orange,$x,-1.5,0.0,0.0,0.0,0.0"
+  done
+} >"$work/short_zone.csv"
+bad short_braking_zone 'short_zone\.csv: not drivable by this car: the braking zone is 25\.0 m long \(finish gate at \(75\.0, 0\.0\), last cone at \(100\.0, .*acceleration_speed_mps=[0-9]+' \
+  acceleration --track "$work/short_zone.csv" --no-plot
+fits=$(grep -o 'acceleration_speed_mps=[0-9]*' "$work/err" | cut -d= -f2)
+check short_zone_slower 0 "$bin" run acceleration --track "$work/short_zone.csv" --no-plot \
+  --set "driver.acceleration_speed_mps=${fits:-0}" --out "$work/slow"
+expect_text short_zone_slower "$work/slow/metrics.json" '"passed": true'
+
 report
