@@ -68,6 +68,9 @@ constexpr double kSteerSaturationShare = 0.9;
 // steering this share of full lock now, hands the steering to the manoeuvre search
 constexpr double kManoeuvreCurvatureShare = 0.75;
 constexpr double kManoeuvreSteerShare = 0.6;
+// steering near lock hands over only up to this speed, where the car turns as its kinematic model
+// says (faster, the tracker is in a transient and the tyres may slide), m/s
+constexpr double kManoeuvreMaxSpeedMps = 6.0;
 // the manoeuvre search looks this far ahead at least, metres, and over this time, s
 constexpr double kManoeuvreAheadM = 6.0;
 constexpr double kManoeuvreAheadS = 1.5;
@@ -357,7 +360,9 @@ struct Driver::Impl {
 
   // whether the path ahead (or the steering now) needs most of the steering's range
   bool tight_ahead(const std::vector<double>& s, double s_here, double speed) const {
-    if (std::abs(steer_now) >= kManoeuvreSteerShare * vehicle.max_steer_rad) return true;
+    if (std::abs(steer_now) >= kManoeuvreSteerShare * vehicle.max_steer_rad &&
+        speed <= kManoeuvreMaxSpeedMps)
+      return true;
     const double limit = kManoeuvreCurvatureShare / full_lock_radius_m(vehicle);
     const std::vector<double> k = curvatures(path.points, path.closed);
     const double lap = path.closed ? s.back() : 0.0;
