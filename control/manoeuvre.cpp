@@ -95,7 +95,11 @@ Rollout roll(const Context& c, const Pose2& start, double speed, double steer_no
     const size_t window = static_cast<size_t>(std::ceil(speed * dt)) + 3;
     on = project_onto(c.path, pose.position(), on.segment, window);
     r.max_deviation = std::max(r.max_deviation, on.distance_m);
-    speed = std::max(0.5, c.profile.speed_at(arc_at(c.s, on), c.lap_m));
+    // towards the planned speed as fast as the car changes speed (no faster: a car still
+    // braking into the turn covers more ground while the steering winds on)
+    const double wanted_speed = c.profile.speed_at(arc_at(c.s, on), c.lap_m);
+    speed = std::max(0.5, speed + std::clamp(wanted_speed - speed, -p.max_decel_mps2 * dt,
+                                             p.max_accel_mps2 * dt));
   }
   r.end = pose;
   r.end_on_path = on;

@@ -43,6 +43,9 @@ struct ManoeuvreParams {
   std::vector<double> wait_s = {0.0, 0.1, 0.2, 0.35, 0.5};
   /// ... and hold full lock this long, s.
   std::vector<double> hold_s = {0.5, 1.0, 1.5, 2.0, 2.5, 3.0};
+  /// How fast the roll-outs' speed follows the planned one, braking and speeding up, m/s^2.
+  double max_decel_mps2 = 8.0;
+  double max_accel_mps2 = 5.0;
   /// Clearance beyond this counts no more, metres.
   double enough_clearance_m = 0.35;
 };

@@ -47,7 +47,7 @@ TEST(HardTracks, FsgMinimumHairpins) {
   // hairpins): the rear axle turns on 2.9-3.1 m at full lock, concentric with the hairpin, where
   // the outer front corner passes the outer cones with 0.16 m at best; the driver turns in at
   // full lock when its roll-outs say so (control/manoeuvre.hpp). Measured: 0.15 m (9.0 m) and
-  // 0.02 m (9.2 m, on the exploration lap, whose exit cones come into view late)
+  // 0.11 m (9.2 m, on the exploration lap, whose exit cones come into view late)
   for (const double radius : {3.0, 3.1}) {
     CentreLine c;
     c.straight(40).arc(radius, kPi).straight(40).arc(radius, kPi);
