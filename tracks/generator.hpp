@@ -65,7 +65,7 @@ struct GeneratorParams {
   TravelDirection direction = TravelDirection::kFromSeed;
   /// Outside diameter of the profiles' minimum hairpins (drawn up to 0.3 m more), metres. The
   /// default is the FSG minimum, 9 m, plus 0.2 m for the rule checker's fit to the cones. The
-  /// default car sweeps 11.2 m at full lock (tests/sim/grip_slow_test.cpp): it needs about 12.
+  /// default car's front corner sweeps 8.5 m at full lock (tests/sim/grip_slow_test.cpp).
   double hairpin_outer_diameter_m = 9.2;
 };
 
