@@ -24,6 +24,8 @@ constexpr int kMaxFootprintRounds = 10;
 // close, and is this much more than the shortfall, metres
 constexpr int kNarrowHalfWindow = 6;
 constexpr double kNarrowExtraM = 0.05;
+// a boundary cone this close to the reference line bounds the line's offset on its side, metres
+constexpr double kSideReachM = 4.0;
 // cones further than this from the rear axle cannot touch the footprint, metres
 constexpr double kFootprintReachM = 4.0;
 
@@ -189,6 +191,29 @@ RacingLine plan_racing_line(const Corridor& c, const std::vector<MapCone>& cones
   for (size_t i = 0; i < n; ++i) {
     lo[i] = -(c.right_m[i] - shrink);
     hi[i] = c.left_m[i] - shrink;
+  }
+  // a boundary cone keeps its side: a blue cone stays left of the line, a yellow one right,
+  // also where the boundary polyline the corridor was measured to passes it by, or the
+  // reference line runs on its far side (a lane that zig-zags sharply at one cone)
+  for (const MapCone& cone : cones) {
+    const bool left = cone.cls == core::ConeClass::kBlue;
+    if (!left && cone.cls != core::ConeClass::kYellow) continue;
+    size_t nearest = 0;
+    double nearest_d2 = std::numeric_limits<double>::infinity();
+    for (size_t i = 0; i < n; ++i) {
+      const double d2 = (cone.position - c.centre[i]).squaredNorm();
+      if (d2 < nearest_d2) nearest_d2 = d2, nearest = i;
+    }
+    if (nearest_d2 > kSideReachM * kSideReachM) continue;
+    const double cone_shrink =
+        f.half_width_m + f.margin_m + 0.5 * core::cone_size(cone.cls).base_m;
+    for (int k = -1; k <= 1; ++k) {
+      const size_t j = neighbour(nearest, k, n, c.closed);
+      if (lo[j] > hi[j]) continue;  // narrower than the car: the line keeps to the middle
+      const double offset = c.normal[j].dot(cone.position - c.centre[j]);
+      if (left) hi[j] = std::max(lo[j], std::min(hi[j], offset - cone_shrink));
+      if (!left) lo[j] = std::min(hi[j], std::max(lo[j], offset + cone_shrink));
+    }
   }
   // an open path starts where the car is, heading along the reference line
   if (!c.closed) lo[0] = hi[0] = lo[1] = hi[1] = 0.0;

@@ -86,5 +86,29 @@ TEST(RacingLine, NarrowerThanTheCarKeepsToTheMiddle) {
   for (const double offset : line.offset_m) EXPECT_LT(std::abs(offset), 0.1);
 }
 
+TEST(RacingLine, KeepsABlueConeOnItsLeftWhereTheLaneZigZags) {
+  // a 7 m lane whose left (blue) boundary juts in at one cone, past the centre line the
+  // corridor was built on, while the boundary polyline given skips that cone: the line still
+  // passes right of it, with the car's half width and the margin to spare
+  CentreLine c;
+  c.straight(60).arc(20, kPi).straight(60).arc(20, kPi);
+  Layout l = layout_of(circuit_from_centre(c.points(), 7.0, 3.0));
+  core::MapCone* jut = nullptr;
+  for (core::MapCone& cone : l.cones)
+    if (cone.cls == core::ConeClass::kBlue && std::abs(cone.position.x() - 30.0) < 1.6 &&
+        cone.position.y() > 0.0)
+      jut = &cone;
+  ASSERT_NE(jut, nullptr);
+  const Vec2 was = jut->position;
+  jut->position.y() = -0.5;  // 0.5 m right of the centre line (which runs along y = 0)
+  std::erase_if(l.left, [&](const Vec2& p) { return (p - was).norm() < 1e-9; });
+  const Footprint f;
+  const RacingLine line = plan_racing_line(l.centre, true, l.left, l.right, l.cones, f);
+  const Vec2 jut_at = jut->position;
+  for (const Vec2& p : line.path.points)
+    if (std::abs(p.x() - jut_at.x()) < 0.5 && std::abs(p.y()) < 5.0)
+      EXPECT_LT(p.y(), jut_at.y() - f.half_width_m) << p.transpose();
+}
+
 }  // namespace
 }  // namespace conesim::control
