@@ -52,8 +52,7 @@ struct Context {
   const Path& path;
   const std::vector<double>& s;
   const std::vector<double>& k;
-  const SpeedProfile& profile;
-  double lap_m;
+  const SpeedCommand& speed_command;
   const std::vector<MapCone>& cones;
 };
 
@@ -65,7 +64,7 @@ Rollout roll(const Context& c, const Pose2& start, double speed, double steer_no
   const ManoeuvreParams& p = c.p;
   Rollout r;
   Pose2 pose = start;
-  double steer = steer_now;
+  double steer = steer_now, wheels = steer_now;
   PathProjection on = here;
   for (double t = 0.0; t < p.horizon_s - 1e-9;) {
     // fine steps while the manoeuvre's timing matters, coarser ones for the tail
@@ -84,7 +83,9 @@ Rollout roll(const Context& c, const Pose2& start, double speed, double steer_no
                                          p.curvature_span_m));
     if (first_step) *first_command = wanted;
     steer += std::clamp(wanted - steer, -max_change, max_change);
-    const double effective = std::atan(std::tan(steer) * yaw_gain_at(p.yaw_gain, steer));
+    // the wheels follow the steering command with a lag (servo and tyres)
+    wheels += (steer - wheels) * std::min(1.0, dt / std::max(p.steer_lag_s, 1e-9));
+    const double effective = std::atan(std::tan(wheels) * yaw_gain_at(p.yaw_gain, wheels));
     pose = vehicle_models::bicycle_step(pose, speed, effective, p.wheelbase_m, dt);
     r.clearance = std::min(r.clearance, signed_footprint_clearance(pose, c.cones, p.footprint));
     if (r.clearance < give_up_below) {
@@ -95,11 +96,10 @@ Rollout roll(const Context& c, const Pose2& start, double speed, double steer_no
     const size_t window = static_cast<size_t>(std::ceil(speed * dt)) + 3;
     on = project_onto(c.path, pose.position(), on.segment, window);
     r.max_deviation = std::max(r.max_deviation, on.distance_m);
-    // towards the planned speed as fast as the car changes speed (no faster: a car still
-    // braking into the turn covers more ground while the steering winds on)
-    const double wanted_speed = c.profile.speed_at(arc_at(c.s, on), c.lap_m);
-    speed = std::max(0.5, speed + std::clamp(wanted_speed - speed, -p.max_decel_mps2 * dt,
-                                             p.max_accel_mps2 * dt));
+    // the speed as the driver commands it, within what the car does
+    const double accel = std::clamp(c.speed_command(speed, arc_at(c.s, on)), -p.max_decel_mps2,
+                                    p.max_accel_mps2);
+    speed = std::max(0.5, speed + accel * dt);
   }
   r.end = pose;
   r.end_on_path = on;
@@ -138,8 +138,8 @@ double signed_footprint_clearance(const Pose2& pose, const std::vector<MapCone>&
 
 ManoeuvreChoice choose_manoeuvre(const ManoeuvreParams& p, const Pose2& pose, double speed_mps,
                                  double steer_now_rad, const Path& path,
-                                 const PathProjection& here, const SpeedProfile& profile,
-                                 double lap_m, const std::vector<MapCone>& cones,
+                                 const PathProjection& here, const SpeedCommand& speed_command,
+                                 const std::vector<MapCone>& cones,
                                  double nominal_steer_rad, const Manoeuvre* previous) {
   ManoeuvreChoice best{{}, nominal_steer_rad, 0.0, true};
   if (path.segment_count() == 0) return best;
@@ -150,7 +150,7 @@ ManoeuvreChoice choose_manoeuvre(const ManoeuvreParams& p, const Pose2& pose, do
     if ((c.position - pose.position()).norm() <= reach) near.push_back(c);
   const std::vector<double> s = path.arc_lengths();
   const std::vector<double> k = curvatures(path.points, path.closed);
-  const Context context{p, path, s, k, profile, lap_m, near};
+  const Context context{p, path, s, k, speed_command, near};
   const double s_here = arc_at(s, here);
   const double lap = path.closed ? s.back() : 0.0;
 

@@ -8,13 +8,13 @@
 // along the path: follow the path, or turn in at full lock now or a little later, hold the lock
 // for a while, and follow the path again.
 
+#include <functional>
 #include <utility>
 #include <vector>
 
 #include "control/path.hpp"
 #include "control/pure_pursuit.hpp"
 #include "control/racing_line.hpp"
-#include "control/speed_profile.hpp"
 #include "core/autonomy_types.hpp"
 
 namespace conesim::control {
@@ -43,7 +43,10 @@ struct ManoeuvreParams {
   std::vector<double> wait_s = {0.0, 0.1, 0.2, 0.35, 0.5};
   /// ... and hold full lock this long, s.
   std::vector<double> hold_s = {0.5, 1.0, 1.5, 2.0, 2.5, 3.0};
-  /// How fast the roll-outs' speed follows the planned one, braking and speeding up, m/s^2.
+  /// Lag of the car's turning behind the steering command (servo, tyres: about 0.05 s for the
+  /// default car, tests/sim/vehicle_sim_test.cpp), s.
+  double steer_lag_s = 0.05;
+  /// The car's braking and speeding-up limits at low speed, m/s^2.
   double max_decel_mps2 = 8.0;
   double max_accel_mps2 = 5.0;
   /// Clearance beyond this counts no more, metres.
@@ -76,16 +79,20 @@ struct ManoeuvreChoice {
   bool nominal = true;
 };
 
+/// The driver's speed command (m/s^2) at speed v (m/s) with the car at arc length s (m) along
+/// the path: the roll-outs' speed follows what the driver would command.
+using SpeedCommand = std::function<double(double v, double s)>;
+
 /// Picks the steering for the car at `pose`, speed `speed_mps`, steering now at
 /// `steer_now_rad`, on `path` (the car projects onto it at `here`), its speed following
-/// `profile` (`lap_m`: the lap of a closed path), past `cones` (map frame). The tracker's own
+/// `speed_command`, past `cones` (map frame). The tracker's own
 /// command (`nominal_steer_rad`, what following the path gives) wins unless a manoeuvre keeps
 /// the footprint clearer; `previous` (the manoeuvre under way, advanced to now) is a candidate
 /// too and wins ties, so that the car carries a manoeuvre through rather than dither.
 ManoeuvreChoice choose_manoeuvre(const ManoeuvreParams& params, const core::Pose2& pose,
                                  double speed_mps, double steer_now_rad, const Path& path,
-                                 const PathProjection& here, const SpeedProfile& profile,
-                                 double lap_m, const std::vector<core::MapCone>& cones,
+                                 const PathProjection& here, const SpeedCommand& speed_command,
+                                 const std::vector<core::MapCone>& cones,
                                  double nominal_steer_rad, const Manoeuvre* previous = nullptr);
 
 /// Signed distance between the footprint with the rear axle at `pose` and the nearest cone's

@@ -74,21 +74,15 @@ ManoeuvreParams params() {
   return p;
 }
 
-SpeedProfile constant_speed(const Path& path, double v) {
-  SpeedProfile profile;
-  profile.s_m = path.arc_lengths();
-  profile.s_m.resize(path.points.size());
-  profile.speed_mps.assign(path.points.size(), v);
-  return profile;
-}
+// a driver holding the speed it has
+const SpeedCommand kHoldSpeed = [](double, double) { return 0.0; };
 
 TEST(Manoeuvre, FollowsThePathWhereThatKeepsClear) {
   // a wide turn: the tracker's own steering is kept
   const Hairpin h = hairpin(8.0, 2.0);
-  const SpeedProfile profile = constant_speed(h.path, 4.0);
   const PathProjection here = project_onto(h.path, {15.0, 0.0}, 0, h.path.segment_count());
   const ManoeuvreChoice c = choose_manoeuvre(params(), {15.0, 0.0, 0.0}, 4.0, 0.0, h.path, here,
-                                             profile, 0.0, h.cones, 0.01);
+                                             kHoldSpeed, h.cones, 0.01);
   EXPECT_TRUE(c.nominal);
   EXPECT_DOUBLE_EQ(c.steer_rad, 0.01);
   EXPECT_GT(c.clearance_m, 0.3);
@@ -100,11 +94,10 @@ TEST(Manoeuvre, TurnsInAtFullLockWhereTheTrackerWouldCutTheCorner) {
   // the inner cones; 2 m before the arc the choice is to hold straight on, then turn in at
   // full lock towards the turn, and it keeps clear
   const Hairpin h = hairpin(3.0, 1.5);
-  const SpeedProfile profile = constant_speed(h.path, 4.0);
   const Pose2 pose{18.0, 0.0, 0.0};
   const PathProjection here = project_onto(h.path, pose.position(), 0, h.path.segment_count());
   const ManoeuvreChoice c =
-      choose_manoeuvre(params(), pose, 4.0, 0.0, h.path, here, profile, 0.0, h.cones, 0.05);
+      choose_manoeuvre(params(), pose, 4.0, 0.0, h.path, here, kHoldSpeed, h.cones, 0.05);
   std::printf("chosen: wait %.2f s (%s), then full lock %+.0f for %.2f s: clearance %.3f m\n",
               c.manoeuvre.wait_s, c.manoeuvre.straight ? "straight" : "on the path",
               c.manoeuvre.side, c.manoeuvre.hold_s, c.clearance_m);
@@ -118,11 +111,10 @@ TEST(Manoeuvre, TurnsInAtFullLockWhereTheTrackerWouldCutTheCorner) {
 TEST(Manoeuvre, LeavesTheSteeringToTheTrackerWhenNothingKeepsClear) {
   // at the start of the arc, still straight: too late for any manoeuvre
   const Hairpin h = hairpin(3.0, 1.5);
-  const SpeedProfile profile = constant_speed(h.path, 4.0);
   const Pose2 pose{20.0, 0.0, 0.0};
   const PathProjection here = project_onto(h.path, pose.position(), 0, h.path.segment_count());
   const ManoeuvreChoice c =
-      choose_manoeuvre(params(), pose, 4.0, 0.0, h.path, here, profile, 0.0, h.cones, 0.123);
+      choose_manoeuvre(params(), pose, 4.0, 0.0, h.path, here, kHoldSpeed, h.cones, 0.123);
   EXPECT_LT(c.clearance_m, 0.0);
   EXPECT_TRUE(c.nominal);
   EXPECT_DOUBLE_EQ(c.steer_rad, 0.123);
