@@ -220,6 +220,19 @@ std::string acceleration_problem(const Scenario& s, const tracks::Track& track) 
 }  // namespace
 
 std::string drivability_problem(const Scenario& s, const tracks::Track& track) {
+  // a cone under the car where it starts is hit before it moves
+  const core::Pose2 rear_axle =
+      track.start.compose({-s.vehicle.front_overhang_from_rear_axle_m, 0.0, 0.0});
+  const double back = s.vehicle.length_m - s.vehicle.front_overhang_from_rear_axle_m;
+  for (const tracks::Cone& c : track.cones) {
+    const core::Vec2 q = rear_axle.inverse_transform(c.position);
+    const double dx = std::max({-back - q.x(), 0.0, q.x() - s.vehicle.front_overhang_from_rear_axle_m});
+    const double dy = std::max(std::abs(q.y()) - 0.5 * s.vehicle.width_m, 0.0);
+    if (std::hypot(dx, dy) < 0.5 * core::cone_size(c.cls).base_m)
+      return "the " + std::string(core::to_string(c.cls)) + " cone at " +
+             core::format_place(c.position) + " stands under the car where it starts (front wing at " +
+             core::format_place(track.start.position()) + ")";
+  }
   if (s.event == core::EventType::kAcceleration) return acceleration_problem(s, track);
   if (s.event != core::EventType::kAutocross && s.event != core::EventType::kTrackdrive) return {};
   // a car that starts off the track finds no path through the cones

@@ -134,4 +134,19 @@ check short_zone_slower 0 "$bin" run acceleration --track "$work/short_zone.csv"
   --set "driver.acceleration_speed_mps=${fits:-0}" --out "$work/slow"
 expect_text short_zone_slower "$work/slow/metrics.json" '"passed": true'
 
+# a cone under the car where it starts (a 15 m radius circle with a stray cone on the start):
+# refused, naming the cone (EUFS SmallCircle has one)
+{
+  echo 'tag,x,y,direction,x_variance,y_variance,xy_covariance'
+  echo 'car_start,0.0,0.0,0.0,0.0,0.0,0.0'
+  for a in $(seq 0 10 350); do
+    awk -v a="$a" 'BEGIN { r = 3.14159265 / 180 * a;
+      printf "blue,%.3f,%.3f,0.0,0.0,0.0,0.0\n", 12 * sin(r), 15 - 12 * cos(r);
+      printf "yellow,%.3f,%.3f,0.0,0.0,0.0,0.0\n", 18 * sin(r), 15 - 18 * cos(r) }'
+  done
+  echo 'yellow,-1.0,0.3,0.0,0.0,0.0,0.0'
+} >"$work/under.csv"
+bad cone_under_car 'under\.csv: not drivable by this car: the yellow cone at \(-1\.0, 0\.3\) stands under the car where it starts' \
+  trackdrive --track "$work/under.csv" --no-plot
+
 report
