@@ -105,9 +105,11 @@ TEST(RacingLine, KeepsABlueConeOnItsLeftWhereTheLaneZigZags) {
   const Footprint f;
   const RacingLine line = plan_racing_line(l.centre, true, l.left, l.right, l.cones, f);
   const Vec2 jut_at = jut->position;
-  for (const Vec2& p : line.path.points)
-    if (std::abs(p.x() - jut_at.x()) < 0.5 && std::abs(p.y()) < 5.0)
+  for (const Vec2& p : line.path.points) {
+    if (std::abs(p.x() - jut_at.x()) < 0.5 && std::abs(p.y()) < 5.0) {
       EXPECT_LT(p.y(), jut_at.y() - f.half_width_m) << p.transpose();
+    }
+  }
 }
 
 }  // namespace
