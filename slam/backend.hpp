@@ -1,5 +1,5 @@
 #pragma once
-// The one interface every SLAM backend implements (ARCHITECTURE decision 5): odometry and cone
+// The one interface every SLAM backend implements (docs/architecture.md): odometry and cone
 // observations in, an estimate and the associations it made out. Several backends can run side
 // by side on the same input stream; one of them drives the car, the others run in shadow.
 
@@ -87,6 +87,9 @@ class Backend {
 
   /// A short name for metrics (`slam.<name>`).
   virtual std::string name() const = 0;
+
+  /// Microseconds the association of the last batch took, negative when not measured.
+  virtual double last_association_us() const { return -1.0; }
 };
 
 }  // namespace conesim::slam

@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <sstream>
 #include <unordered_set>
@@ -210,9 +211,12 @@ void GraphSlam::associate_batch(const core::ConeObservations& observations) {
   double farthest_m = 0.0;
   for (const core::ConeObservation& o : observations.cones)
     farthest_m = std::max(farthest_m, o.position.norm());
-  associations_ = associate(config_.association, poses_.back().pose(), &pose_covariance_,
-                            candidates(farthest_m), observations,
-                            phase_ == core::SlamPhase::kMapping);
+  const std::vector<LandmarkCandidate> in_reach = candidates(farthest_m);
+  const auto start = std::chrono::steady_clock::now();
+  associations_ = associate(config_.association, poses_.back().pose(), &pose_covariance_, in_reach,
+                            observations, phase_ == core::SlamPhase::kMapping);
+  association_us_ =
+      std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
 }
 
 void GraphSlam::update(const core::ConeObservations& observations) {

@@ -86,6 +86,7 @@ class GraphSlam : public Backend {
   const std::vector<Association>& last_associations() const override { return associations_; }
   int loop_closures() const override { return loop_closures_; }
   std::string name() const override { return "graph"; }
+  double last_association_us() const override { return association_us_; }
 
   /// The whole estimated trajectory, one pose per processed batch (the poses of the pose nodes,
   /// smoothed by the optimisations).
@@ -199,6 +200,7 @@ class GraphSlam : public Backend {
   /// Poses [0, folded_poses_) have their observation edges folded into landmark priors.
   int folded_poses_ = 0;
   double travel_m_ = 0.0;
+  double association_us_ = 0.0;
   double speed_mps_ = 0.0;
   double yaw_rate_rps_ = 0.0;
 };
