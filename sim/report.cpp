@@ -129,9 +129,13 @@ std::string events_section(const json& m) {
 }
 
 // one SLAM backend's figures, its map per class and its pictures
-std::string slam_section(const fs::path& dir, const std::string& name, const json& f) {
+// prefix: the figures' file prefix, slam_ for the driving back-end, slam_<name>_ for a shadow
+std::string slam_section(const fs::path& dir, const std::string& name, const json& f,
+                         bool driving) {
   std::ostringstream h;
-  h << "<h2>SLAM: " << html_escape(name) << "</h2>\n<table>\n";
+  const std::string prefix = driving ? "slam_" : "slam_" + name + "_";
+  h << "<h2>SLAM: " << html_escape(name) << (driving ? " (drives the car)" : " (shadow, scored only)")
+    << "</h2>\n<table>\n";
   struct Headline {
     const char* key;
     const char* label;
@@ -168,8 +172,8 @@ std::string slam_section(const fs::path& dir, const std::string& name, const jso
         << with_unit(number(c, "rmse_m"), "m") << "</td></tr>\n";
     h << "</table>\n";
   }
-  h << image_if_present(dir, "slam_map.png") << image_if_present(dir, "slam_map_error.png")
-    << image_if_present(dir, "slam_trajectory.png") << image_if_present(dir, "slam_error.png");
+  h << image_if_present(dir, prefix + "map.png") << image_if_present(dir, prefix + "map_error.png")
+    << image_if_present(dir, prefix + "trajectory.png") << image_if_present(dir, prefix + "error.png");
   return h.str();
 }
 
@@ -263,7 +267,15 @@ std::string run_report_html(const fs::path& dir, const json& m) {
     << verdict_section(m) << run_section(m) << events_section(m)
     << image_if_present(dir, "run.png");
   if (m.contains("slam") && m["slam"].is_object())
-    for (const auto& [name, figures] : m["slam"].items()) h << slam_section(dir, name, figures);
+  {
+    // the driving back-end first, then the shadows, then every back-end's map error on one plot
+    std::string driving = text(m, "slam_driving");
+    if (!m["slam"].contains(driving) && !m["slam"].empty()) driving = m["slam"].begin().key();
+    if (m["slam"].contains(driving)) h << slam_section(dir, driving, m["slam"][driving], true);
+    for (const auto& [name, figures] : m["slam"].items())
+      if (name != driving) h << slam_section(dir, name, figures, false);
+    if (m["slam"].size() > 1) h << image_if_present(dir, "slam_lanes.png");
+  }
   h << perception_section(dir, m.value("perception", json::object())) << "</body></html>\n";
   return h.str();
 }

@@ -35,9 +35,16 @@ slam::BackendSettings lane_settings(const Scenario& s, const std::string& backen
       method = it->second;
   if (method) {
     settings.ekf.association.method = *method;
-    // GraphSLAM's own association is ML with individual compatibility, tracking-aided by
-    // default; the scenario reader refuses the other methods for it
-    settings.graph.association.use_track_ids = *method == slam::AssociationMethod::kTrackingAided;
+    // GraphSLAM's built-in association is ML with individual compatibility and the drift
+    // consensus on returning, tracking-aided by default; the other methods replace it
+    using M = slam::AssociationMethod;
+    settings.graph.association.use_track_ids = *method == M::kTrackingAided;
+    if (*method != M::kTrackingAided && *method != M::kMaximumLikelihood) {
+      slam::AssociationParams params = settings.ekf.association;
+      params.method = *method;
+      params.gate_chi2 = settings.graph.association.gate_chi2;
+      settings.graph.method = params;
+    }
   }
   return settings;
 }

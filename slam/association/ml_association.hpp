@@ -10,6 +10,7 @@
 #include "core/autonomy_types.hpp"
 #include "core/cone.hpp"
 #include "core/geometry.hpp"
+#include "slam/association/methods.hpp"
 #include "slam/backend.hpp"
 
 namespace conesim::slam {
@@ -80,5 +81,18 @@ std::vector<Association> associate(const AssociationConfig& config, const core::
                                    const Eigen::Matrix3d* pose_covariance,
                                    const std::vector<LandmarkCandidate>& candidates,
                                    const core::ConeObservations& observations, bool allow_new);
+
+/// The same with one of the injectable methods (slam/association/methods.hpp) on the
+/// candidates' marginal covariances (drift allowance included): the pairings of two
+/// observations are correlated through the shared pose covariance, and through the landmark's
+/// covariance when they pair with the same landmark. Unmatched observations are new or rejected
+/// as in associate().
+std::vector<Association> associate_with_method(const AssociationParams& params,
+                                               const AssociationConfig& config,
+                                               const core::Pose2& pose,
+                                               const Eigen::Matrix3d* pose_covariance,
+                                               const std::vector<LandmarkCandidate>& candidates,
+                                               const core::ConeObservations& observations,
+                                               bool allow_new);
 
 }  // namespace conesim::slam

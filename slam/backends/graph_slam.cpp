@@ -213,8 +213,13 @@ void GraphSlam::associate_batch(const core::ConeObservations& observations) {
     farthest_m = std::max(farthest_m, o.position.norm());
   const std::vector<LandmarkCandidate> in_reach = candidates(farthest_m);
   const auto start = std::chrono::steady_clock::now();
-  associations_ = associate(config_.association, poses_.back().pose(), &pose_covariance_, in_reach,
-                            observations, phase_ == core::SlamPhase::kMapping);
+  const bool allow_new = phase_ == core::SlamPhase::kMapping;
+  associations_ =
+      config_.method
+          ? associate_with_method(*config_.method, config_.association, poses_.back().pose(),
+                                  &pose_covariance_, in_reach, observations, allow_new)
+          : associate(config_.association, poses_.back().pose(), &pose_covariance_, in_reach,
+                      observations, allow_new);
   association_us_ =
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
 }

@@ -27,6 +27,9 @@ namespace conesim::slam {
 /// GraphSLAM parameters.
 struct GraphSlamConfig {
   AssociationConfig association;
+  /// One of the injectable methods (nn, scnn, jcbb) instead of the built-in ML+IC with the
+  /// drift consensus (tracking-aided when association.use_track_ids); unset: the built-in.
+  std::optional<AssociationParams> method;
   LoopClosureConfig loop_closure;
 
   /// The cone sensor's field of view (for the landmark statistics): its mount ahead of the rear
