@@ -109,7 +109,9 @@ void EkfSlam::predict(const OdometryDelta& odometry) {
   q(2, 2) += config_.yaw_noise_per_m * odometry.distance_m;
   x_.head<3>() = Eigen::Vector3d(next.x, next.y, next.yaw);
   const int n = static_cast<int>(x_.size());
-  p_.topLeftCorner<3, 3>() = f * p_.topLeftCorner<3, 3>() * f.transpose() + g * q * g.transpose();
+  const Eigen::Matrix3d pose_block =
+      f * p_.topLeftCorner<3, 3>() * f.transpose() + g * q * g.transpose();
+  p_.topLeftCorner<3, 3>() = 0.5 * (pose_block + pose_block.transpose());
   if (n > 3) {
     p_.topRightCorner(3, n - 3) = f * p_.topRightCorner(3, n - 3);
     p_.bottomLeftCorner(n - 3, 3) = p_.topRightCorner(3, n - 3).transpose();
@@ -308,7 +310,7 @@ void EkfSlam::update(const core::ConeObservations& obs, const std::vector<std::p
     s.middleRows<2>(2 * a) += h_pose[a] * pht.topRows<3>();
     if (rows[a] >= 0) s.middleRows<2>(2 * a) += h_landmark[a] * pht.middleRows<2>(rows[a]);
   }
-  s = 0.5 * (s + s.transpose());
+  s = (0.5 * (s + s.transpose())).eval();  // eval: the transpose must not alias the result
   // K = P H^T S^-1 through an LDLT factorisation of S (no explicit inverse)
   const Eigen::LDLT<Eigen::MatrixXd> ldlt(s);
   const Eigen::MatrixXd k = ldlt.solve(pht.transpose()).transpose();
@@ -320,7 +322,7 @@ void EkfSlam::update(const core::ConeObservations& obs, const std::vector<std::p
   // n x n x 2m products instead of one. The result is symmetrised against round-off.
   const Eigen::MatrixXd kpht = k * pht.transpose();
   p_ += -kpht - kpht.transpose() + k * s * k.transpose();
-  p_ = 0.5 * (p_ + p_.transpose());
+  p_ = (0.5 * (p_ + p_.transpose())).eval();  // eval: the transpose must not alias the result
 }
 
 void EkfSlam::add_landmark(const core::ConeObservation& o, int id) {
@@ -336,8 +338,9 @@ void EkfSlam::add_landmark(const core::ConeObservation& o, int id) {
   const Eigen::MatrixXd cross = l_pose * p_.topRows<3>();  // 2 x n
   grown.bottomLeftCorner(2, n) = cross;
   grown.topRightCorner(n, 2) = cross.transpose();
-  grown.bottomRightCorner<2, 2>() = l_pose * p_.topLeftCorner<3, 3>() * l_pose.transpose() +
-                                    l_z * o.covariance * l_z.transpose();
+  const Eigen::Matrix2d landmark_block = l_pose * p_.topLeftCorner<3, 3>() * l_pose.transpose() +
+                                         l_z * o.covariance * l_z.transpose();
+  grown.bottomRightCorner<2, 2>() = 0.5 * (landmark_block + landmark_block.transpose());
   p_ = std::move(grown);
   Landmark lm;
   lm.id = id;

@@ -102,5 +102,93 @@ TEST(EkfSlam, TwoLapsOfAGeneratedCircuitMapAndLocaliseWithinTargets) {
   EXPECT_TRUE(r.localising_at_end);
 }
 
+TEST(EkfSlam, CovarianceStaysSymmetricPositiveDefiniteOverAWholeTrackdrive) {
+  // mapping lap, loop closure, localisation lap; checked after every batch (the Cholesky
+  // factorisation of the whole P, which fails on any non-positive pivot, every 5th batch)
+  const tracks::Track track = tracks::generate_circuit(4);
+  EkfSlam slam;
+  testing::DriveParams params;
+  params.seed = 4;
+  int checked = 0, largest = 0;
+  double worst_asymmetry = 0.0, smallest_diagonal = 1e300;
+  params.after_batch = [&](int batch) {
+    const Eigen::MatrixXd& p = slam.covariance();
+    worst_asymmetry = std::max(worst_asymmetry, (p - p.transpose()).cwiseAbs().maxCoeff());
+    smallest_diagonal = std::min(smallest_diagonal, p.diagonal().minCoeff());
+    largest = std::max(largest, static_cast<int>(p.rows()));
+    if (batch % 5 != 0) return;
+    ++checked;
+    const Eigen::LLT<Eigen::MatrixXd> llt(p);
+    ASSERT_EQ(llt.info(), Eigen::Success) << "P not positive definite after batch " << batch;
+  };
+  const testing::DriveResult r = testing::drive(track, slam, params);
+  print("ekf seed 4", r);
+  EXPECT_EQ(worst_asymmetry, 0.0);
+  EXPECT_GT(smallest_diagonal, 0.0);
+  EXPECT_GT(checked, 100);
+  // it did map: the joint state grew to the whole track, then the loop closed
+  EXPECT_GT(largest, 2 * static_cast<int>(track.cones.size()) * 9 / 10);
+  EXPECT_EQ(r.loop_closures, 1);
+  EXPECT_TRUE(r.localising_at_end);
+}
+
+TEST(EkfSlam, PredictionTouchesOnlyThePoseRowsAndTheirCrossTerms) {
+  // two landmarks in the filter, then a prediction with no observations
+  EkfSlamConfig config;
+  config.confirm_sightings = 1;
+  EkfSlam slam(config);
+  slam.reset({}, 0);
+  SlamInput first;
+  first.observations.stamp = 100'000;
+  first.observations.cones = {{{8.0, 2.0}, core::ConeClass::kBlue, Eigen::Matrix2d::Identity() * 0.01, -1},
+                              {{8.0, -2.0}, core::ConeClass::kYellow, Eigen::Matrix2d::Identity() * 0.01, -1}};
+  slam.process(first);
+  ASSERT_EQ(slam.landmarks(), 2);
+  const Eigen::MatrixXd before = slam.covariance();
+  SlamInput move;
+  move.odometry.delta = {1.0, 0.0, 0.05};
+  move.odometry.covariance = Eigen::Vector3d(1e-3, 1e-3, 1e-4).asDiagonal();
+  move.observations.stamp = 200'000;
+  slam.process(move);
+  const Eigen::MatrixXd& after = slam.covariance();
+  // the landmark block is untouched, the pose block grew, the cross terms moved with the pose
+  EXPECT_EQ(after.bottomRightCorner(4, 4), before.bottomRightCorner(4, 4));
+  EXPECT_GT(after(0, 0) + after(1, 1) + after(2, 2), before(0, 0) + before(1, 1) + before(2, 2));
+  Eigen::Matrix3d f;
+  EkfSlam::motion({}, move.odometry.delta, &f);
+  EXPECT_LT((after.topRightCorner(3, 4) - f * before.topRightCorner(3, 4)).cwiseAbs().maxCoeff(),
+            1e-15);
+}
+
+TEST(EkfSlam, LocalisesOnAPriorMapWithoutChangingIt) {
+  const tracks::Track track = tracks::generate_circuit(5);
+  std::vector<core::MapCone> prior;
+  for (const tracks::Cone& cone : track.cones)
+    prior.push_back({cone.id, cone.cls, cone.position, Eigen::Matrix2d::Identity() * 1e-4});
+  EkfSlam slam;
+  testing::DriveParams params;
+  params.seed = 5;
+  params.laps = 1.0;
+  params.prior_map = prior;
+  const testing::DriveResult r = testing::drive(track, slam, params);
+  print("ekf prior map seed 5", r);
+  EXPECT_LE(r.ate_rmse_m, 0.10);
+  EXPECT_LE(r.map_rmse_m, 1e-9);
+  EXPECT_EQ(r.map_matched, static_cast<int>(track.cones.size()));
+  EXPECT_EQ(r.loop_closures, 0);
+  EXPECT_GE(r.da_correct_fraction, 0.99);
+  EXPECT_EQ(slam.covariance().rows(), 3);
+}
+
+TEST(EkfSlamConfig, ValidateNamesTheBadKey) {
+  EkfSlamConfig c;
+  EXPECT_EQ(c.validate(), "");
+  c.confirm_sightings = 0;
+  EXPECT_EQ(c.validate().rfind("confirm_sightings:", 0), 0u);
+  c = {};
+  c.association.joint_probability = 1.5;
+  EXPECT_EQ(c.validate().rfind("association.joint_probability:", 0), 0u);
+}
+
 }  // namespace
 }  // namespace conesim::slam
