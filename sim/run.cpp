@@ -404,7 +404,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   result.wall_time_s = wall_s;
   result.driver_laps = driver.status().laps_counted;
 
-  // metrics.json (the contract in ARCHITECTURE.md)
+  // metrics.json (every key in docs/metrics.md)
   const RefereeResult& r = result.referee;
   std::vector<double> lap_times;
   for (double lt : r.lap_times_s) lap_times.push_back(round_to(lt, 1e-3));

@@ -461,6 +461,7 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
                number("loop_min_travel_m", ekf.loop_min_travel_m, e),
                number("start_radius_m", ekf.start_radius_m, e),
                number("closure_delay_m", ekf.closure_delay_m, e),
+               integer("closure_min_pairs", ekf.closure_min_pairs, e),
                {"localise_after_loop_closure",
                 [&](const YAML::Node& x) {
                   ekf.localise_after_loop_closure =

@@ -300,7 +300,7 @@ std::vector<core::Pose2> SlamRunner::lane_poses(size_t lane_index, const std::ve
 void SlamRunner::write_report(const std::filesystem::path& dir) const {
   for (const auto& lane : lanes_)
     lane->scorer.write_report(dir, lane->driving ? "slam_" : "slam_" + lane->name + "_",
-                              lane->last_estimate);
+                              lane->driving ? "" : "slam_" + lane->name + "_", lane->last_estimate);
   // every lane's map error over distance on one plot, one colour each
   if (lanes_.size() < 2) return;
   std::vector<PlotData> data;

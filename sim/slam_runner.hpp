@@ -79,7 +79,8 @@ class SlamRunner {
                                       const std::vector<core::Pose2>& odometry) const;
 
   /// Writes each lane's map, map error and trajectory figures into the run directory: the
-  /// driving lane's as slam_*.png / map.csv, a shadow's as slam_<name>_*.png / <name>_map.csv,
+  /// driving lane's as map.csv, map_error.csv and slam_*.png, a shadow's as
+  /// slam_<name>_map.csv, slam_<name>_map_error.csv and slam_<name>_*.png,
   /// and slam_lanes.png with every lane's map error over distance on one plot.
   void write_report(const std::filesystem::path& dir) const;
 

@@ -316,11 +316,12 @@ nlohmann::json SlamScorer::metrics(const core::Estimate& e) const {
 }
 
 void SlamScorer::write_report(const std::filesystem::path& dir, const std::string& prefix,
+                              const std::string& csv_prefix,
                               const core::Estimate& final_estimate) const {
   // map.csv: every estimated cone with the true cone it stands for
   const std::vector<MapMatch> matches = match_map(final_estimate.map);
   {
-    std::ofstream csv(dir / (prefix + "map.csv"));
+    std::ofstream csv(dir / (csv_prefix + "map.csv"));
     csv << "id,class,x_m,y_m,var_x_m2,cov_xy_m2,var_y_m2,true_cone_id,error_m\n";
     for (const MapMatch& m : matches) {
       const auto& c = m.estimate;
@@ -354,7 +355,7 @@ void SlamScorer::write_report(const std::filesystem::path& dir, const std::strin
 
   // the map error per class over distance driven: a table and its figure
   {
-    std::ofstream csv(dir / (prefix + "map_error.csv"));
+    std::ofstream csv(dir / (csv_prefix + "map_error.csv"));
     csv << "distance_m,matched,rmse_m";
     for (core::ConeClass c : kScoredClasses) csv << ",rmse_" << core::to_string(c) << "_m";
     csv << "\n";

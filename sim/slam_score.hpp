@@ -108,10 +108,11 @@ class SlamScorer {
   int false_loop_closures() const { return false_loop_closures_; }
   int loop_closures() const { return loop_closures_; }
 
-  /// Writes <prefix>map.csv, <prefix>map_error.csv and the map, map-error and trajectory
-  /// figures (<prefix>map.png, ...) for the final estimate into `dir`.
+  /// Writes <csv_prefix>map.csv, <csv_prefix>map_error.csv and the map, map-error and
+  /// trajectory figures (<prefix>map.png, <prefix>map_error.png, <prefix>trajectory.png,
+  /// <prefix>error.png) for the final estimate into `dir`.
   void write_report(const std::filesystem::path& dir, const std::string& prefix,
-                    const core::Estimate& final_estimate) const;
+                    const std::string& csv_prefix, const core::Estimate& final_estimate) const;
 
  private:
   void snapshot_map_error(double distance_m, const core::Estimate& estimate);

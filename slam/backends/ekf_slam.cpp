@@ -30,6 +30,7 @@ std::string EkfSlamConfig::validate() const {
   if (!(loop_min_travel_m >= 0.0)) return "loop_min_travel_m: expected >= 0 m";
   if (!(start_radius_m > 0.0)) return "start_radius_m: expected > 0 m";
   if (!(closure_delay_m >= 0.0)) return "closure_delay_m: expected >= 0 m";
+  if (closure_min_pairs < 1) return "closure_min_pairs: expected a count >= 1";
   if (!(odometry_noise_scale > 0.0 && odometry_noise_scale <= 1000.0))
     return "odometry_noise_scale: expected a factor in (0, 1000]";
   if (!(yaw_noise_per_m >= 0.0)) return "yaw_noise_per_m: expected >= 0";
@@ -137,14 +138,16 @@ class EkfProblem : public AssociationProblem {
     Eigen::Matrix2d h_landmark = Eigen::Matrix2d::Zero();
     std::array<int, 5> votes{};
     int track = -1;
-    bool start_only = false;  // an old start landmark: only big orange cones may pair with it
+    // an old landmark of the start, a candidate only for closing the loop (with big orange
+    // cones at the start, only big orange cones may pair with it)
+    bool start_only = false;
   };
 
   EkfProblem(const core::Pose2& pose, const Eigen::MatrixXd& p,
              const core::ConeObservations& observations, std::vector<Candidate> candidates,
-             int class_vote_margin, const std::vector<char>& usable)
+             int class_vote_margin, const std::vector<char>& usable, bool big_orange_closure)
       : pose_(pose), p_(p), obs_(observations), cand_(std::move(candidates)),
-        margin_(class_vote_margin), usable_(usable) {
+        margin_(class_vote_margin), usable_(usable), big_orange_closure_(big_orange_closure) {
     for (Candidate& c : cand_) c.predicted = predict_observation(pose, c.position, &c.h_pose, &c.h_landmark);
     for (const auto& o : obs_.cones) in_map_.push_back(pose.transform(o.position));
   }
@@ -175,7 +178,7 @@ class EkfProblem : public AssociationProblem {
     const Candidate& c = cand_[j];
     if ((in_map_[i] - c.position).squaredNorm() > kPrefilterM * kPrefilterM) return false;
     const core::ConeClass cls = obs_.cones[i].cls;
-    if (c.start_only && cls != core::ConeClass::kOrangeBig) return false;
+    if (c.start_only && big_orange_closure_ && cls != core::ConeClass::kOrangeBig) return false;
     return class_compatible(cls, c.votes, margin_);
   }
   int observation_track(int i) const override { return obs_.cones[i].track_id; }
@@ -189,6 +192,7 @@ class EkfProblem : public AssociationProblem {
   std::vector<Candidate> cand_;
   int margin_;
   const std::vector<char>& usable_;
+  bool big_orange_closure_;
   std::vector<core::Vec2> in_map_;
 };
 
@@ -216,14 +220,21 @@ void EkfSlam::process(const SlamInput& input) {
   const core::Pose2 now = pose();
   const double reach = farthest_m + kReachMarginM;
   const bool may_close = !loop_open_ && travel_m_ >= config_.loop_min_travel_m;
+  // the loop closes on the start's big orange cones; a layout without them (some published
+  // ones) closes on the start's other landmarks, several at once
+  bool big_orange_closure = false;
+  for (const Landmark& lm : landmarks_)
+    if (lm.at_start && voted_class(lm.class_votes) == core::ConeClass::kOrangeBig)
+      big_orange_closure = true;
   std::vector<EkfProblem::Candidate> candidates;
   for (size_t k = 0; k < landmarks_.size(); ++k) {
     const Landmark& lm = landmarks_[k];
     const core::Vec2 position = localising ? fixed_position_[lm.index] : landmark_position(lm);
     if ((position - now.position()).squaredNorm() > reach * reach) continue;
     const bool recent = travel_m_ - lm.last_seen_travel_m <= config_.unseen_exclusion_m;
-    const bool start_cone = may_close && lm.at_start &&
-                            voted_class(lm.class_votes) == core::ConeClass::kOrangeBig;
+    const bool start_cone =
+        may_close && lm.at_start &&
+        (!big_orange_closure || voted_class(lm.class_votes) == core::ConeClass::kOrangeBig);
     if (!loop_open_ && !recent && !start_cone) continue;
     EkfProblem::Candidate c;
     c.landmark = static_cast<int>(k);
@@ -235,20 +246,28 @@ void EkfSlam::process(const SlamInput& input) {
     c.start_only = !loop_open_ && !recent;
     candidates.push_back(c);
   }
-  const EkfProblem problem(now, p_, obs, std::move(candidates), config_.class_vote_margin, usable);
+  const EkfProblem problem(now, p_, obs, std::move(candidates), config_.class_vote_margin, usable,
+                           big_orange_closure);
   const auto start = std::chrono::steady_clock::now();
   const std::vector<int> pairing = associate(config_.association, problem);
   association_us_ =
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
 
-  // the pairs, the loop closure they make, the bookkeeping
+  // the loop closure the pairings make: one big orange cone of the start, or without them
+  // closure_min_pairs of the start's landmarks in one frame; fewer are dropped (not applied)
+  int start_pairs = 0;
+  for (int i = 0; i < n_obs; ++i)
+    if (pairing[i] >= 0 && problem.candidate(pairing[i]).start_only) ++start_pairs;
+  const bool closing =
+      start_pairs >= (big_orange_closure ? 1 : std::max(1, config_.closure_min_pairs));
+
+  // the pairs and the bookkeeping
   std::vector<std::pair<int, int>> pairs;
-  bool closing = false;
   for (int i = 0; i < n_obs; ++i) {
     if (pairing[i] < 0) continue;
     const EkfProblem::Candidate& c = problem.candidate(pairing[i]);
+    if (c.start_only && !closing) continue;
     pairs.emplace_back(i, c.landmark);
-    if (c.start_only) closing = true;
     Landmark& lm = landmarks_[c.landmark];
     associations_[i] = {lm.id, Association::Kind::kMatched};
     lm.last_seen_travel_m = travel_m_;
@@ -257,7 +276,7 @@ void EkfSlam::process(const SlamInput& input) {
     if (obs.cones[i].track_id >= 0) lm.track_id = obs.cones[i].track_id;
   }
   if (closing) {
-    // back at the start's big orange cones: every landmark may be associated again
+    // back at the start: every landmark may be associated again
     loop_open_ = true;
     ++loop_closures_;
     closure_travel_m_ = travel_m_;

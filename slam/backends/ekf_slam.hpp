@@ -35,6 +35,10 @@ struct EkfSlamConfig {
   /// one of the big orange landmarks mapped within start_radius_m of the start pose.
   double loop_min_travel_m = 60.0;
   double start_radius_m = 12.0;
+  /// A layout without big orange cones at the start closes the loop when this many of the
+  /// start's landmarks (mapped within start_radius_m in the first loop_min_travel_m / 2) pair
+  /// with cones of one frame.
+  int closure_min_pairs = 3;
   /// Mapping goes on this far after the closure before the map is fixed (localise after).
   double closure_delay_m = 20.0;
   bool localise_after_loop_closure = true;
