@@ -462,6 +462,7 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
                number("start_radius_m", ekf.start_radius_m, e),
                number("closure_delay_m", ekf.closure_delay_m, e),
                integer("closure_min_pairs", ekf.closure_min_pairs, e),
+               number("closure_max_heading_rad", ekf.closure_max_heading_rad, e),
                {"localise_after_loop_closure",
                 [&](const YAML::Node& x) {
                   ekf.localise_after_loop_closure =
@@ -693,7 +694,10 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                                number("detection_probability_near", cs.detection_probability_near, c),
                                number("detection_probability_far", cs.detection_probability_far, c),
                                number("detection_falloff_start_m", cs.detection_falloff_start_m, c),
-                               number("false_positives_per_frame", cs.false_positives_per_frame, c)});
+                               number("false_positives_per_frame", cs.false_positives_per_frame, c),
+                               {"track", [&](const YAML::Node& x) {
+                                  ss.cone_sensor_track = read_bool(x, c, "track");
+                                }}});
                }},
               {"lidar",
                [&](const YAML::Node& v) {

@@ -40,6 +40,9 @@ struct SensorSettings {
   double cone_fov_deg = 200.0;
   /// The detection-level cone sensor (`perception: cone_sensor`).
   sensors::ConeSensorConfig cone_sensor;
+  /// Run the perception's tracker on the cone sensor's frames (`sensors.cone_sensor.track`):
+  /// observations get track ids (for tracking-aided association) and the tracks' colour votes.
+  bool cone_sensor_track = false;
   /// The LiDAR sweeps while the car drives when enabled (or dumped).
   bool lidar_enabled = false;
   /// A preset of sensors::lidar_preset (vlp16, vlp32c, os1-64) and a mount preset.

@@ -31,6 +31,8 @@ std::string EkfSlamConfig::validate() const {
   if (!(start_radius_m > 0.0)) return "start_radius_m: expected > 0 m";
   if (!(closure_delay_m >= 0.0)) return "closure_delay_m: expected >= 0 m";
   if (closure_min_pairs < 1) return "closure_min_pairs: expected a count >= 1";
+  if (!(closure_max_heading_rad > 0.0 && closure_max_heading_rad <= 3.2))
+    return "closure_max_heading_rad: expected an angle in (0, 3.2] rad";
   if (!(odometry_noise_scale > 0.0 && odometry_noise_scale <= 1000.0))
     return "odometry_noise_scale: expected a factor in (0, 1000]";
   if (!(yaw_noise_per_m >= 0.0)) return "yaw_noise_per_m: expected >= 0";
@@ -62,7 +64,7 @@ core::Vec2 EkfSlam::landmark_from(const core::Pose2& pose, const core::Vec2& z,
 
 void EkfSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
   x_ = Eigen::Vector3d(initial_pose.x, initial_pose.y, initial_pose.yaw);
-  start_ = initial_pose.position();
+  start_ = initial_pose;
   // the start pose is the gauge: known up to a trace of uncertainty (P stays definite)
   p_ = Eigen::Vector3d(1e-8, 1e-8, 1e-10).asDiagonal();
   landmarks_.clear();
@@ -219,7 +221,12 @@ void EkfSlam::process(const SlamInput& input) {
   // start's big orange cones excepted once the car may be back)
   const core::Pose2 now = pose();
   const double reach = farthest_m + kReachMarginM;
-  const bool may_close = !loop_open_ && travel_m_ >= config_.loop_min_travel_m;
+  // the loop may close once the car has come round: far enough driven, near the start pose and
+  // heading the start's way (a leg passing the start the other way sees its cones too)
+  const bool may_close =
+      !loop_open_ && travel_m_ >= config_.loop_min_travel_m &&
+      (now.position() - start_.position()).norm() <= 2.0 * config_.start_radius_m &&
+      std::abs(core::normalize_angle(now.yaw - start_.yaw)) <= config_.closure_max_heading_rad;
   // the loop closes on the start's big orange cones; a layout without them (some published
   // ones) closes on the start's other landmarks, several at once
   bool big_orange_closure = false;
@@ -368,7 +375,7 @@ void EkfSlam::add_landmark(const core::ConeObservation& o, int id) {
   lm.track_id = o.track_id;
   lm.first_travel_m = travel_m_;
   lm.last_seen_travel_m = travel_m_;
-  lm.at_start = (l - start_).norm() < config_.start_radius_m &&
+  lm.at_start = (l - start_.position()).norm() < config_.start_radius_m &&
                 travel_m_ < config_.loop_min_travel_m / 2;
   landmarks_.push_back(lm);
 }

@@ -39,6 +39,9 @@ struct EkfSlamConfig {
   /// start's landmarks (mapped within start_radius_m in the first loop_min_travel_m / 2) pair
   /// with cones of one frame.
   int closure_min_pairs = 3;
+  /// And only while the car heads within this angle of the start pose's heading, no farther
+  /// than 2 x start_radius_m from it, rad.
+  double closure_max_heading_rad = 1.0;
   /// Mapping goes on this far after the closure before the map is fixed (localise after).
   double closure_delay_m = 20.0;
   bool localise_after_loop_closure = true;
@@ -138,7 +141,7 @@ class EkfSlam : public Backend {
   double speed_mps_ = 0.0;
   double yaw_rate_rps_ = 0.0;
   core::TimeUs stamp_ = 0;
-  core::Vec2 start_ = core::Vec2::Zero();
+  core::Pose2 start_;
   double association_us_ = 0.0;
 };
 
