@@ -134,8 +134,8 @@ std::string slam_section(const fs::path& dir, const std::string& name, const jso
                          bool driving) {
   std::ostringstream h;
   const std::string prefix = driving ? "slam_" : "slam_" + name + "_";
-  h << "<h2>SLAM: " << html_escape(name) << (driving ? " (drives the car)" : " (shadow, scored only)")
-    << "</h2>\n<table>\n";
+  h << "<h2>SLAM: " << html_escape(name)
+    << (driving ? " (drives the car)" : " (shadow, scored only)") << "</h2>\n<table>\n";
   struct Headline {
     const char* key;
     const char* label;
@@ -173,7 +173,8 @@ std::string slam_section(const fs::path& dir, const std::string& name, const jso
     h << "</table>\n";
   }
   h << image_if_present(dir, prefix + "map.png") << image_if_present(dir, prefix + "map_error.png")
-    << image_if_present(dir, prefix + "trajectory.png") << image_if_present(dir, prefix + "error.png");
+    << image_if_present(dir, prefix + "trajectory.png")
+    << image_if_present(dir, prefix + "error.png");
   return h.str();
 }
 
@@ -266,8 +267,7 @@ std::string run_report_html(const fs::path& dir, const json& m) {
     << "</p>\n"
     << verdict_section(m) << run_section(m) << events_section(m)
     << image_if_present(dir, "run.png");
-  if (m.contains("slam") && m["slam"].is_object())
-  {
+  if (m.contains("slam") && m["slam"].is_object()) {
     // the driving back-end first, then the shadows, then every back-end's map error on one plot
     std::string driving = text(m, "slam_driving");
     if (!m["slam"].contains(driving) && !m["slam"].empty()) driving = m["slam"].begin().key();

@@ -370,7 +370,6 @@ fs::path resolve(const fs::path& scenario_file, const std::string& name) {
   return p;
 }
 
-
 // a back-end name of the slam: block
 std::string read_backend(const YAML::Node& n, const Where& w, const std::string& key,
                          bool none_allowed) {
@@ -451,41 +450,39 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
        {"ekf",
         [&](const YAML::Node& v) {
           const Where e{&context, "slam.ekf"};
-          read_section(
-              v, e,
-              {integer("confirm_sightings", ekf.confirm_sightings, e),
-               number("preliminary_max_travel_m", ekf.preliminary_max_travel_m, e),
-               number("preliminary_radius_m", ekf.preliminary_radius_m, e),
-               number("new_landmark_min_distance_m", ekf.new_landmark_min_distance_m, e),
-               number("unseen_exclusion_m", ekf.unseen_exclusion_m, e),
-               number("loop_min_travel_m", ekf.loop_min_travel_m, e),
-               number("start_radius_m", ekf.start_radius_m, e),
-               number("closure_delay_m", ekf.closure_delay_m, e),
-               integer("closure_min_pairs", ekf.closure_min_pairs, e),
-               number("closure_max_heading_rad", ekf.closure_max_heading_rad, e),
-               {"localise_after_loop_closure",
-                [&](const YAML::Node& x) {
-                  ekf.localise_after_loop_closure =
-                      read_bool(x, e, "localise_after_loop_closure");
-                }},
-               number("odometry_noise_scale", ekf.odometry_noise_scale, e),
-               number("yaw_noise_per_m", ekf.yaw_noise_per_m, e),
-               number("gate_chi2", ekf.association.gate_chi2, e),
-               number("joint_probability", ekf.association.joint_probability, e),
-               number("nn_radius_m", ekf.association.nn_radius_m, e)});
+          read_section(v, e,
+                       {integer("confirm_sightings", ekf.confirm_sightings, e),
+                        number("preliminary_max_travel_m", ekf.preliminary_max_travel_m, e),
+                        number("preliminary_radius_m", ekf.preliminary_radius_m, e),
+                        number("new_landmark_min_distance_m", ekf.new_landmark_min_distance_m, e),
+                        number("unseen_exclusion_m", ekf.unseen_exclusion_m, e),
+                        number("loop_min_travel_m", ekf.loop_min_travel_m, e),
+                        number("start_radius_m", ekf.start_radius_m, e),
+                        number("closure_delay_m", ekf.closure_delay_m, e),
+                        integer("closure_min_pairs", ekf.closure_min_pairs, e),
+                        number("closure_max_heading_rad", ekf.closure_max_heading_rad, e),
+                        {"localise_after_loop_closure",
+                         [&](const YAML::Node& x) {
+                           ekf.localise_after_loop_closure =
+                               read_bool(x, e, "localise_after_loop_closure");
+                         }},
+                        number("odometry_noise_scale", ekf.odometry_noise_scale, e),
+                        number("yaw_noise_per_m", ekf.yaw_noise_per_m, e),
+                        number("gate_chi2", ekf.association.gate_chi2, e),
+                        number("joint_probability", ekf.association.joint_probability, e),
+                        number("nn_radius_m", ekf.association.nn_radius_m, e)});
         }},
        {"graph", [&](const YAML::Node& v) {
           const Where g{&context, "slam.graph"};
-          read_section(
-              v, g,
-              {integer("confirm_sightings", graph.confirm_sightings, g),
-               integer("window_poses", graph.window_poses, g),
-               number("icr_sigma_m", graph.icr_sigma_m, g),
-               number("gate_chi2", graph.association.gate_chi2, g),
-               {"localise_after_loop_closure", [&](const YAML::Node& x) {
-                  graph.localise_after_loop_closure =
-                      read_bool(x, g, "localise_after_loop_closure");
-                }}});
+          read_section(v, g,
+                       {integer("confirm_sightings", graph.confirm_sightings, g),
+                        integer("window_poses", graph.window_poses, g),
+                        number("icr_sigma_m", graph.icr_sigma_m, g),
+                        number("gate_chi2", graph.association.gate_chi2, g),
+                        {"localise_after_loop_closure", [&](const YAML::Node& x) {
+                           graph.localise_after_loop_closure =
+                               read_bool(x, g, "localise_after_loop_closure");
+                         }}});
         }}});
 }
 }  // namespace
@@ -678,26 +675,26 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                [&](const YAML::Node& v) {
                  const Where c{&context, "sensors.cone_sensor"};
                  auto& cs = ss.cone_sensor;
-                 read_section(v, c,
-                              {number("rate_hz", cs.timing.rate_hz, c),
-                               number("latency_s", cs.timing.latency_s, c),
-                               number("mount_x_m", cs.mount_x_m, c),
-                               number("min_range_m", cs.min_range_m, c),
-                               number("max_range_m", cs.max_range_m, c),
-                               number("fov_deg", cs.fov_deg, c),
-                               number("range_sigma_m", cs.range_sigma_m, c),
-                               number("bearing_sigma_rad", cs.bearing_sigma_rad, c),
-                               number("colour_range_m", cs.colour_range_m, c),
-                               number("colour_probability", cs.colour_probability, c),
-                               number("colour_confusion_probability",
-                                      cs.colour_confusion_probability, c),
-                               number("detection_probability_near", cs.detection_probability_near, c),
-                               number("detection_probability_far", cs.detection_probability_far, c),
-                               number("detection_falloff_start_m", cs.detection_falloff_start_m, c),
-                               number("false_positives_per_frame", cs.false_positives_per_frame, c),
-                               {"track", [&](const YAML::Node& x) {
-                                  ss.cone_sensor_track = read_bool(x, c, "track");
-                                }}});
+                 read_section(
+                     v, c,
+                     {number("rate_hz", cs.timing.rate_hz, c),
+                      number("latency_s", cs.timing.latency_s, c),
+                      number("mount_x_m", cs.mount_x_m, c),
+                      number("min_range_m", cs.min_range_m, c),
+                      number("max_range_m", cs.max_range_m, c),
+                      number("fov_deg", cs.fov_deg, c),
+                      number("range_sigma_m", cs.range_sigma_m, c),
+                      number("bearing_sigma_rad", cs.bearing_sigma_rad, c),
+                      number("colour_range_m", cs.colour_range_m, c),
+                      number("colour_probability", cs.colour_probability, c),
+                      number("colour_confusion_probability", cs.colour_confusion_probability, c),
+                      number("detection_probability_near", cs.detection_probability_near, c),
+                      number("detection_probability_far", cs.detection_probability_far, c),
+                      number("detection_falloff_start_m", cs.detection_falloff_start_m, c),
+                      number("false_positives_per_frame", cs.false_positives_per_frame, c),
+                      {"track", [&](const YAML::Node& x) {
+                         ss.cone_sensor_track = read_bool(x, c, "track");
+                       }}});
                }},
               {"lidar",
                [&](const YAML::Node& v) {
@@ -834,9 +831,8 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   if (!(s.slam_latency_s >= 0.0 && s.slam_latency_s <= 1.0))
     context.fail("slam_latency_s", "expected a latency from 0 to 1 s");
   if (s.slam == "none" && !s.slam_shadows.empty())
-    context.fail("slam.shadow",
-                 "shadow back-ends run beside a driving one: set slam.drive to " +
-                     slam::backend_list());
+    context.fail("slam.shadow", "shadow back-ends run beside a driving one: set slam.drive to " +
+                                    slam::backend_list());
   if (const std::string e = s.slam_settings.ekf.validate(); !e.empty())
     context.fail_check("slam.ekf", e);
   if (const std::string e = s.slam_settings.graph.validate(); !e.empty())

@@ -131,8 +131,8 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
     if (std::any_of(lanes_.begin(), lanes_.end(),
                     [&](const auto& l) { return l->name == specs[k].lane; }))
       continue;
-    auto backend = slam::make_backend(specs[k].backend,
-                                      lane_settings(s, specs[k].backend, specs[k].method));
+    auto backend =
+        slam::make_backend(specs[k].backend, lane_settings(s, specs[k].backend, specs[k].method));
     auto lane = std::make_unique<Lane>(specs[k].lane, k == 0, std::move(backend), track, view);
     lane->backend->reset(start_pose_, 0);
     if (s.event == core::EventType::kSkidpad) {
@@ -188,9 +188,9 @@ void SlamRunner::catch_up(TimeUs t) {
       Lane::Pending& update = lane.pending.front();
       // the driving lane waits for its latency; a shadow's finished updates are scored as
       // they come (in order, so the figures do not depend on when)
-      const bool ready =
-          lane.driving ? update.due_us <= t
-                       : update.result.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+      const bool ready = lane.driving ? update.due_us <= t
+                                      : update.result.wait_for(std::chrono::seconds(0)) ==
+                                            std::future_status::ready;
       if (!ready) break;
       take_in(lane, update.frame, update.result.get());
       lane.pending.pop_front();
@@ -233,7 +233,8 @@ core::Estimate SlamRunner::estimate_now(TimeUs t, slam::frontend::SweepMotion* m
   const slam::OdometryDelta delta = forward.take_delta(t);
   // the updates still running: the estimate before them, moved on by their odometry
   core::Pose2 pose = last_estimate_.pose;
-  for (const Lane::Pending& update : lanes_.front()->pending) pose = pose.compose(update.odometry_delta);
+  for (const Lane::Pending& update : lanes_.front()->pending)
+    pose = pose.compose(update.odometry_delta);
   core::Estimate e = last_estimate_;
   e.stamp = t;
   e.pose = pose.compose(delta.delta);
@@ -276,9 +277,13 @@ std::vector<std::string> SlamRunner::lane_names() const {
   return names;
 }
 
-std::string SlamRunner::name() const { return lanes_.front()->name; }
+std::string SlamRunner::name() const {
+  return lanes_.front()->name;
+}
 
-const SlamScorer& SlamRunner::scorer() const { return lanes_.front()->scorer; }
+const SlamScorer& SlamRunner::scorer() const {
+  return lanes_.front()->scorer;
+}
 
 std::vector<core::Pose2> SlamRunner::lane_poses(size_t lane_index, const std::vector<TimeUs>& t,
                                                 const std::vector<core::Pose2>& odometry) const {
@@ -291,7 +296,8 @@ std::vector<core::Pose2> SlamRunner::lane_poses(size_t lane_index, const std::ve
   for (size_t i = 0; i < t.size(); ++i) {
     while (k < stamps.size() && stamps[k] <= t[i]) ++k;
     const core::Pose2 at_update = k == 0 ? start_pose_ : poses[k - 1];
-    const core::Pose2 odometry_then = frame_odometry_[std::min(k, frame_odometry_.size() - 1)].second;
+    const core::Pose2 odometry_then =
+        frame_odometry_[std::min(k, frame_odometry_.size() - 1)].second;
     out.push_back(at_update.compose(odometry_then.inverse().compose(odometry[i])));
   }
   return out;
@@ -305,8 +311,8 @@ void SlamRunner::write_report(const std::filesystem::path& dir) const {
   if (lanes_.size() < 2) return;
   std::vector<PlotData> data;
   std::string plot = "plot ";
-  static const char* kColours[] = {"#1f4fd8", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e",
-                                   "#8c564b", "#e377c2", "#17becf"};
+  static const char* kColours[] = {"#1f4fd8", "#d62728", "#2ca02c", "#9467bd",
+                                   "#ff7f0e", "#8c564b", "#e377c2", "#17becf"};
   for (size_t k = 0; k < lanes_.size(); ++k) {
     PlotData d{"lane" + std::to_string(k), {}};
     for (const auto& row : lanes_[k]->scorer.map_error_over_distance())

@@ -53,8 +53,7 @@ class SlamRunner {
   /// The driving estimate at time t: the back-end's, moved forward by the odometry since its
   /// last frame. With `motion`, also the odometry's motion at t for perception: the speed
   /// averaged over the last 0.1 s (a sweep; single encoder samples are coarse) and the yaw rate.
-  core::Estimate estimate_now(core::TimeUs t,
-                              slam::frontend::SweepMotion* motion = nullptr) const;
+  core::Estimate estimate_now(core::TimeUs t, slam::frontend::SweepMotion* motion = nullptr) const;
 
   /// The pose the odometry alone gives at time t (dead reckoning from the start pose).
   core::Pose2 odometry_pose_now(core::TimeUs t) const;

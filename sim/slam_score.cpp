@@ -61,8 +61,7 @@ SlamScorer::SlamScorer(const tracks::Track& track, const PerceptionView& view)
 
 void SlamScorer::set_prior_map_identities() {
   for (size_t k = 0; k < track_.cones.size(); ++k)
-    landmark_votes_[static_cast<int>(k)][track_.cones[k].id] =
-        std::numeric_limits<int>::max() / 2;
+    landmark_votes_[static_cast<int>(k)][track_.cones[k].id] = std::numeric_limits<int>::max() / 2;
 }
 
 void SlamScorer::note_cones_in_view(const core::Pose2& pose) {

@@ -79,7 +79,8 @@ struct JointState {
     const Eigen::LLT<Eigen::Matrix2d> llt(schur);
     if (llt.info() != Eigen::Success) return std::nullopt;
     const Eigen::Matrix2d l22 = llt.matrixL();
-    Eigen::Vector2d rhs = v - (k > 0 ? Eigen::Vector2d(x.transpose() * y) : Eigen::Vector2d::Zero());
+    Eigen::Vector2d rhs =
+        v - (k > 0 ? Eigen::Vector2d(x.transpose() * y) : Eigen::Vector2d::Zero());
     const Eigen::Vector2d y2 = l22.triangularView<Eigen::Lower>().solve(rhs);
     JointState next;
     next.pairs = pairs;
@@ -115,9 +116,7 @@ struct Jcbb {
   JointState best;
   int nodes = 0;
 
-  bool jointly_compatible(const JointState& s) const {
-    return s.d2 < gates[s.pairs.size()];
-  }
+  bool jointly_compatible(const JointState& s) const { return s.d2 < gates[s.pairs.size()]; }
 
   void search(int i, const JointState& h) {
     if (++nodes > params.jcbb_max_nodes) return;
@@ -196,9 +195,9 @@ std::vector<int> associate(const AssociationParams& params, const AssociationPro
   std::vector<int> pairing_of(n, -1);
   std::vector<char> taken(p.candidates(), 0);
   const auto by_cost = [](const Pairing& a, const Pairing& b) {
-    return a.cost < b.cost || (a.cost == b.cost && (a.observation < b.observation ||
-                                                    (a.observation == b.observation &&
-                                                     a.candidate < b.candidate)));
+    return a.cost < b.cost ||
+           (a.cost == b.cost && (a.observation < b.observation ||
+                                 (a.observation == b.observation && a.candidate < b.candidate)));
   };
 
   switch (params.method) {
@@ -257,9 +256,13 @@ std::vector<int> associate(const AssociationParams& params, const AssociationPro
     case AssociationMethod::kJcbb: {
       std::vector<Pairing> ic = compatible_pairings(p, params.gate_chi2);
       std::sort(ic.begin(), ic.end(), by_cost);
-      Jcbb search{p,  params, joint_gates(params.joint_probability, n),
-                  std::vector<std::vector<Pairing>>(n), std::vector<char>(p.candidates(), 0),
-                  {}, 0};
+      Jcbb search{p,
+                  params,
+                  joint_gates(params.joint_probability, n),
+                  std::vector<std::vector<Pairing>>(n),
+                  std::vector<char>(p.candidates(), 0),
+                  {},
+                  0};
       for (const Pairing& q : ic) search.options[q.observation].push_back(q);
       // observations with fewer options first: the tree's upper levels branch least
       std::vector<int> order(n);

@@ -201,9 +201,8 @@ class MarginalProblem : public AssociationProblem {
       Eigen::Matrix2d hl;
       predicted_.push_back(predict_observation(pose, c.position, &hp, &hl));
       h_pose_.push_back(hp);
-      landmark_term_.push_back(hl *
-                               (c.covariance + Eigen::Matrix2d::Identity() * c.drift_variance_m2) *
-                               hl.transpose());
+      landmark_term_.push_back(
+          hl * (c.covariance + Eigen::Matrix2d::Identity() * c.drift_variance_m2) * hl.transpose());
     }
     for (const auto& o : observations.cones) in_map_.push_back(pose.transform(o.position));
   }
@@ -241,13 +240,10 @@ class MarginalProblem : public AssociationProblem {
 
 }  // namespace
 
-std::vector<Association> associate_with_method(const AssociationParams& params,
-                                               const AssociationConfig& config,
-                                               const core::Pose2& pose,
-                                               const Eigen::Matrix3d* pose_covariance,
-                                               const std::vector<LandmarkCandidate>& candidates,
-                                               const core::ConeObservations& observations,
-                                               bool allow_new) {
+std::vector<Association> associate_with_method(
+    const AssociationParams& params, const AssociationConfig& config, const core::Pose2& pose,
+    const Eigen::Matrix3d* pose_covariance, const std::vector<LandmarkCandidate>& candidates,
+    const core::ConeObservations& observations, bool allow_new) {
   const MarginalProblem problem(config, pose, pose_covariance, candidates, observations);
   const std::vector<int> pairing = associate(params, problem);
   const int n_obs = problem.observations();
@@ -265,11 +261,11 @@ std::vector<Association> associate_with_method(const AssociationParams& params,
       nearest_m = std::min(nearest_m, d_m);
       if (d_m > 6.0) continue;
       const Eigen::Vector2d v = problem.innovation(i, j);
-      nearest_d2 = std::min(nearest_d2,
-                            v.dot(problem.innovation_covariance(i, j, i, j).ldlt().solve(v)));
+      nearest_d2 =
+          std::min(nearest_d2, v.dot(problem.innovation_covariance(i, j, i, j).ldlt().solve(v)));
     }
-    const bool far = nearest_d2 > config.new_landmark_chi2 &&
-                     nearest_m > config.new_landmark_min_distance_m;
+    const bool far =
+        nearest_d2 > config.new_landmark_chi2 && nearest_m > config.new_landmark_min_distance_m;
     out[i].kind = allow_new && far ? Association::Kind::kNew : Association::Kind::kRejected;
   }
   return out;

@@ -87,12 +87,9 @@ std::vector<Association> associate(const AssociationConfig& config, const core::
 /// observations are correlated through the shared pose covariance, and through the landmark's
 /// covariance when they pair with the same landmark. Unmatched observations are new or rejected
 /// as in associate().
-std::vector<Association> associate_with_method(const AssociationParams& params,
-                                               const AssociationConfig& config,
-                                               const core::Pose2& pose,
-                                               const Eigen::Matrix3d* pose_covariance,
-                                               const std::vector<LandmarkCandidate>& candidates,
-                                               const core::ConeObservations& observations,
-                                               bool allow_new);
+std::vector<Association> associate_with_method(
+    const AssociationParams& params, const AssociationConfig& config, const core::Pose2& pose,
+    const Eigen::Matrix3d* pose_covariance, const std::vector<LandmarkCandidate>& candidates,
+    const core::ConeObservations& observations, bool allow_new);
 
 }  // namespace conesim::slam

@@ -24,8 +24,7 @@ std::string EkfSlamConfig::validate() const {
   if (confirm_sightings < 1) return "confirm_sightings: expected a count >= 1";
   if (!(preliminary_max_travel_m > 0.0)) return "preliminary_max_travel_m: expected > 0 m";
   if (!(preliminary_radius_m > 0.0)) return "preliminary_radius_m: expected > 0 m";
-  if (!(new_landmark_min_distance_m >= 0.0))
-    return "new_landmark_min_distance_m: expected >= 0 m";
+  if (!(new_landmark_min_distance_m >= 0.0)) return "new_landmark_min_distance_m: expected >= 0 m";
   if (!(unseen_exclusion_m > 0.0)) return "unseen_exclusion_m: expected > 0 m";
   if (!(loop_min_travel_m >= 0.0)) return "loop_min_travel_m: expected >= 0 m";
   if (!(start_radius_m > 0.0)) return "start_radius_m: expected > 0 m";
@@ -43,7 +42,9 @@ std::string EkfSlamConfig::validate() const {
   return {};
 }
 
-EkfSlam::EkfSlam(const EkfSlamConfig& config) : config_(config) { reset({}, 0); }
+EkfSlam::EkfSlam(const EkfSlamConfig& config) : config_(config) {
+  reset({}, 0);
+}
 
 core::Pose2 EkfSlam::motion(const core::Pose2& pose, const core::Pose2& d, Eigen::Matrix3d* f_pose,
                             Eigen::Matrix3d* f_delta) {
@@ -130,8 +131,8 @@ namespace {
 class EkfProblem : public AssociationProblem {
  public:
   struct Candidate {
-    int landmark = 0;          // index into the landmarks
-    int row = -1;              // first state row, -1 when fixed (localisation)
+    int landmark = 0;                          // index into the landmarks
+    int row = -1;                              // first state row, -1 when fixed (localisation)
     core::Vec2 position = core::Vec2::Zero();  // map frame
     // fixed landmark's covariance (localisation)
     Eigen::Matrix2d fixed_cov = Eigen::Matrix2d::Zero();
@@ -148,9 +149,15 @@ class EkfProblem : public AssociationProblem {
   EkfProblem(const core::Pose2& pose, const Eigen::MatrixXd& p,
              const core::ConeObservations& observations, std::vector<Candidate> candidates,
              int class_vote_margin, const std::vector<char>& usable, bool big_orange_closure)
-      : pose_(pose), p_(p), obs_(observations), cand_(std::move(candidates)),
-        margin_(class_vote_margin), usable_(usable), big_orange_closure_(big_orange_closure) {
-    for (Candidate& c : cand_) c.predicted = predict_observation(pose, c.position, &c.h_pose, &c.h_landmark);
+      : pose_(pose),
+        p_(p),
+        obs_(observations),
+        cand_(std::move(candidates)),
+        margin_(class_vote_margin),
+        usable_(usable),
+        big_orange_closure_(big_orange_closure) {
+    for (Candidate& c : cand_)
+      c.predicted = predict_observation(pose, c.position, &c.h_pose, &c.h_landmark);
     for (const auto& o : obs_.cones) in_map_.push_back(pose.transform(o.position));
   }
 
@@ -299,8 +306,8 @@ void EkfSlam::process(const SlamInput& input) {
     enter_localisation();
 }
 
-void EkfSlam::update(const core::ConeObservations& obs, const std::vector<std::pair<int, int>>& pairs,
-                     bool pose_only) {
+void EkfSlam::update(const core::ConeObservations& obs,
+                     const std::vector<std::pair<int, int>>& pairs, bool pose_only) {
   const int m = static_cast<int>(pairs.size());
   if (m == 0) return;
   const int n = static_cast<int>(x_.size());
@@ -364,8 +371,8 @@ void EkfSlam::add_landmark(const core::ConeObservation& o, int id) {
   const Eigen::MatrixXd cross = l_pose * p_.topRows<3>();  // 2 x n
   grown.bottomLeftCorner(2, n) = cross;
   grown.topRightCorner(n, 2) = cross.transpose();
-  const Eigen::Matrix2d landmark_block = l_pose * p_.topLeftCorner<3, 3>() * l_pose.transpose() +
-                                         l_z * o.covariance * l_z.transpose();
+  const Eigen::Matrix2d landmark_block =
+      l_pose * p_.topLeftCorner<3, 3>() * l_pose.transpose() + l_z * o.covariance * l_z.transpose();
   grown.bottomRightCorner<2, 2>() = 0.5 * (landmark_block + landmark_block.transpose());
   p_ = std::move(grown);
   Landmark lm;

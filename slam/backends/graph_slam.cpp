@@ -214,12 +214,11 @@ void GraphSlam::associate_batch(const core::ConeObservations& observations) {
   const std::vector<LandmarkCandidate> in_reach = candidates(farthest_m);
   const auto start = std::chrono::steady_clock::now();
   const bool allow_new = phase_ == core::SlamPhase::kMapping;
-  associations_ =
-      config_.method
-          ? associate_with_method(*config_.method, config_.association, poses_.back().pose(),
-                                  &pose_covariance_, in_reach, observations, allow_new)
-          : associate(config_.association, poses_.back().pose(), &pose_covariance_, in_reach,
-                      observations, allow_new);
+  associations_ = config_.method ? associate_with_method(*config_.method, config_.association,
+                                                         poses_.back().pose(), &pose_covariance_,
+                                                         in_reach, observations, allow_new)
+                                 : associate(config_.association, poses_.back().pose(),
+                                             &pose_covariance_, in_reach, observations, allow_new);
   association_us_ =
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
 }

@@ -17,17 +17,17 @@ TEST(SlamLanesSlow, EkfSlamDrivesTenGeneratedCircuitsWithoutPenalties) {
     const Scenario s =
         load_scenario(find_scenario("trackdrive-graphslam"), {"slam.drive=ekf"}, seed);
     RunOptions options;
-    options.out_dir = fs::temp_directory_path() /
-                      ("conesim-ekf-drive-" + std::to_string(seed) + "-" + std::to_string(::getpid()));
+    options.out_dir = fs::temp_directory_path() / ("conesim-ekf-drive-" + std::to_string(seed) +
+                                                   "-" + std::to_string(::getpid()));
     options.plot = false;
     const RunResult r = run_scenario(s, scenario_track(s), options);
     fs::remove_all(options.out_dir);
     const nlohmann::json& ekf = r.metrics["slam"]["ekf"];
-    std::printf("seed %2llu: %s, %zu cones hit, %d off-course, map RMSE %.3f m, ATE %.3f m, DA %.5f\n",
-                static_cast<unsigned long long>(seed), r.referee.completed ? "completed" : "DNF",
-                r.referee.cones_hit.size(), r.referee.off_course,
-                ekf["map_rmse_m"].get<double>(), ekf["ate_rmse_m"].get<double>(),
-                ekf["da_correct_fraction"].get<double>());
+    std::printf(
+        "seed %2llu: %s, %zu cones hit, %d off-course, map RMSE %.3f m, ATE %.3f m, DA %.5f\n",
+        static_cast<unsigned long long>(seed), r.referee.completed ? "completed" : "DNF",
+        r.referee.cones_hit.size(), r.referee.off_course, ekf["map_rmse_m"].get<double>(),
+        ekf["ate_rmse_m"].get<double>(), ekf["da_correct_fraction"].get<double>());
     EXPECT_TRUE(r.referee.completed) << "seed " << seed << ": " << r.referee.dnf_reason;
     EXPECT_EQ(r.referee.cones_hit.size(), 0u) << "seed " << seed;
     EXPECT_EQ(r.referee.off_course, 0) << "seed " << seed;

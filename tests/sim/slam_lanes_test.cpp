@@ -56,7 +56,8 @@ nlohmann::json without_timing(nlohmann::json m) {
 
 TEST(SlamLanes, ShadowsAreScoredAndLeaveTheDrivenTrajectoryBitIdentical) {
   const LaneRun alone = run_trackdrive({}, "alone");
-  const LaneRun shadowed = run_trackdrive({"slam.shadow=[ekf, 'ekf:jcbb', 'graph:nn']"}, "shadowed");
+  const LaneRun shadowed =
+      run_trackdrive({"slam.shadow=[ekf, 'ekf:jcbb', 'graph:nn']"}, "shadowed");
   ASSERT_TRUE(alone.result.referee.completed);
 
   // the car drove the same: every row's truth, command and driving estimate to the last digit

@@ -19,7 +19,9 @@ tracks::Track straight() {
   return t;
 }
 
-PerceptionView wide_view() { return {0.0, 0.0, 100.0, 360.0}; }
+PerceptionView wide_view() {
+  return {0.0, 0.0, 100.0, 360.0};
+}
 
 // feeds one update: the car at x, the given cones observed and associated as given
 struct Feeder {
@@ -32,8 +34,8 @@ struct Feeder {
     core::ConeObservations obs;
     obs.stamp = t += 100'000;
     for (size_t i = 0; i < true_ids.size(); ++i)
-      obs.cones.push_back({core::Vec2(1.0, 1.5), ConeClass::kBlue,
-                           Eigen::Matrix2d::Identity() * 0.01, -1});
+      obs.cones.push_back(
+          {core::Vec2(1.0, 1.5), ConeClass::kBlue, Eigen::Matrix2d::Identity() * 0.01, -1});
     core::Estimate e;
     e.pose = estimate_pose;
     e.pose.x += x;
@@ -52,7 +54,8 @@ struct Feeder {
 
 std::vector<core::MapCone> true_map(const tracks::Track& t) {
   std::vector<core::MapCone> map;
-  for (const auto& c : t.cones) map.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity()});
+  for (const auto& c : t.cones)
+    map.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity()});
   return map;
 }
 

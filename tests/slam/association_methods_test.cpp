@@ -2,13 +2,12 @@
 // each cone with its nearest landmark is individually fine and jointly impossible (the two
 // innovations ask for opposite pose corrections); the joint methods must see that.
 
-#include "slam/association/methods.hpp"
-
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
 #include <chrono>
 
+#include "slam/association/methods.hpp"
 #include "slam/association/ml_association.hpp"
 
 namespace conesim::slam {
@@ -41,7 +40,9 @@ class Frame : public AssociationProblem {
   core::Vec2 candidate_position(int j) const override { return landmarks_[j]; }
   bool allowed(int, int) const override { return true; }
   int observation_track(int i) const override { return tracks_.empty() ? -1 : tracks_[i]; }
-  int candidate_track(int j) const override { return landmark_tracks_.empty() ? -1 : landmark_tracks_[j]; }
+  int candidate_track(int j) const override {
+    return landmark_tracks_.empty() ? -1 : landmark_tracks_[j];
+  }
 
   std::vector<int> tracks_, landmark_tracks_;
 
@@ -73,8 +74,8 @@ AssociationParams with(AssociationMethod m) {
 
 TEST(AssociationMethods, IndividualMethodsTakeTheNearestAndBreakJointCompatibility) {
   const Frame f = ambiguous();
-  for (AssociationMethod m : {AssociationMethod::kMaximumLikelihood,
-                              AssociationMethod::kNearestNeighbour}) {
+  for (AssociationMethod m :
+       {AssociationMethod::kMaximumLikelihood, AssociationMethod::kNearestNeighbour}) {
     const std::vector<int> pairing = associate(with(m), f);
     EXPECT_EQ(pairing, (std::vector<int>{1, 2})) << to_string(m);
     // jointly the two innovations cannot both hold: far beyond the 99 % gate of 4 dof
@@ -119,9 +120,9 @@ TEST(AssociationMethods, TrackingAidedFollowsTheTrackWithinItsLooseGate) {
 }
 
 TEST(AssociationMethods, NamesRoundTripAndChiSquareQuantilesAreClose) {
-  for (AssociationMethod m : {AssociationMethod::kNearestNeighbour,
-                              AssociationMethod::kMaximumLikelihood, AssociationMethod::kScnn,
-                              AssociationMethod::kJcbb, AssociationMethod::kTrackingAided})
+  for (AssociationMethod m :
+       {AssociationMethod::kNearestNeighbour, AssociationMethod::kMaximumLikelihood,
+        AssociationMethod::kScnn, AssociationMethod::kJcbb, AssociationMethod::kTrackingAided})
     EXPECT_EQ(association_from_string(to_string(m)), m);
   EXPECT_FALSE(association_from_string("guess").has_value());
   // tabulated 99 % quantiles: 2 dof 9.210, 4 dof 13.277, 10 dof 23.209, 40 dof 63.691

@@ -30,12 +30,17 @@ Eigen::Matrix<double, Out, In> numerical(const F& f, const Eigen::Matrix<double,
   return j;
 }
 
-Eigen::Vector3d vec(const core::Pose2& p) { return {p.x, p.y, p.yaw}; }
-core::Pose2 pose(const Eigen::Vector3d& v) { return {v(0), v(1), v(2)}; }
+Eigen::Vector3d vec(const core::Pose2& p) {
+  return {p.x, p.y, p.yaw};
+}
+core::Pose2 pose(const Eigen::Vector3d& v) {
+  return {v(0), v(1), v(2)};
+}
 
 TEST(EkfSlamJacobians, MotionModelMatchesNumericalDerivatives) {
-  for (const auto& [p, d] : {std::pair{core::Pose2{1.0, -2.0, 0.7}, core::Pose2{0.9, 0.05, 0.03}},
-                             std::pair{core::Pose2{-3.0, 4.0, -2.9}, core::Pose2{1.4, -0.2, -0.2}}}) {
+  for (const auto& [p, d] :
+       {std::pair{core::Pose2{1.0, -2.0, 0.7}, core::Pose2{0.9, 0.05, 0.03}},
+        std::pair{core::Pose2{-3.0, 4.0, -2.9}, core::Pose2{1.4, -0.2, -0.2}}}) {
     Eigen::Matrix3d f_pose, f_delta;
     EkfSlam::motion(p, d, &f_pose, &f_delta);
     const auto by_pose = numerical<3, 3>(
@@ -140,8 +145,9 @@ TEST(EkfSlam, PredictionTouchesOnlyThePoseRowsAndTheirCrossTerms) {
   slam.reset({}, 0);
   SlamInput first;
   first.observations.stamp = 100'000;
-  first.observations.cones = {{{8.0, 2.0}, core::ConeClass::kBlue, Eigen::Matrix2d::Identity() * 0.01, -1},
-                              {{8.0, -2.0}, core::ConeClass::kYellow, Eigen::Matrix2d::Identity() * 0.01, -1}};
+  first.observations.cones = {
+      {{8.0, 2.0}, core::ConeClass::kBlue, Eigen::Matrix2d::Identity() * 0.01, -1},
+      {{8.0, -2.0}, core::ConeClass::kYellow, Eigen::Matrix2d::Identity() * 0.01, -1}};
   slam.process(first);
   ASSERT_EQ(slam.landmarks(), 2);
   const Eigen::MatrixXd before = slam.covariance();

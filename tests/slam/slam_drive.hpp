@@ -279,7 +279,8 @@ inline DriveResult drive(const tracks::Track& track, Backend& backend, const Dri
   const nlohmann::json m = scorer.metrics(e);
   r.da_correct = scorer.da_correct();
   r.da_wrong = scorer.da_wrong();
-  r.da_correct_fraction = m["da_correct_fraction"].is_null() ? 0.0 : m["da_correct_fraction"].get<double>();
+  r.da_correct_fraction =
+      m["da_correct_fraction"].is_null() ? 0.0 : m["da_correct_fraction"].get<double>();
   r.map_rmse_m = m["map_rmse_m"].is_null() ? 0.0 : m["map_rmse_m"].get<double>();
   r.map_matched = m["map_matched"].get<int>();
   r.map_spurious = m["map_spurious"].get<int>();
