@@ -135,7 +135,12 @@ std::string slam_section(const fs::path& dir, const std::string& name, const jso
   std::ostringstream h;
   const std::string prefix = driving ? "slam_" : "slam_" + name + "_";
   h << "<h2>SLAM: " << html_escape(name)
-    << (driving ? " (drives the car)" : " (shadow, scored only)") << "</h2>\n<table>\n";
+    << (driving ? " (drives the car)" : " (shadow, scored only)") << "</h2>\n";
+  if (f.value("ideal_association", false))
+    h << "<p><b>Ideal association:</b> this back-end was paired with the cones by the "
+         "ground-truth labels, an ablation no car can run; its figures show what the others "
+         "lose to association errors.</p>\n";
+  h << "<table>\n";
   struct Headline {
     const char* key;
     const char* label;

@@ -833,6 +833,12 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   if (s.slam == "none" && !s.slam_shadows.empty())
     context.fail("slam.shadow", "shadow back-ends run beside a driving one: set slam.drive to " +
                                     slam::backend_list());
+  if (const auto it = s.slam_association.find(s.slam);
+      it != s.slam_association.end() && it->second == slam::AssociationMethod::kIdeal)
+    context.fail("slam.association",
+                 "ideal reads the ground-truth labels: it is for shadow back-ends only (e.g. "
+                 "shadow: [" +
+                     s.slam + ":ideal]), never for the one that drives");
   if (const std::string e = s.slam_settings.ekf.validate(); !e.empty())
     context.fail_check("slam.ekf", e);
   if (const std::string e = s.slam_settings.graph.validate(); !e.empty())

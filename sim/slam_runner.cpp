@@ -103,6 +103,9 @@ struct SlamRunner::Lane {
 
   std::string name;
   bool driving;
+  // the association method's name, and whether it reads the labels (ideal)
+  std::string association;
+  bool ideal = false;
   std::unique_ptr<slam::Backend> backend;
   SlamScorer scorer;
   std::deque<Pending> pending;
@@ -134,6 +137,15 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
     auto backend =
         slam::make_backend(specs[k].backend, lane_settings(s, specs[k].backend, specs[k].method));
     auto lane = std::make_unique<Lane>(specs[k].lane, k == 0, std::move(backend), track, view);
+    // the association it runs: its own, the scenario's for the back-end, or the default
+    std::optional<slam::AssociationMethod> method = specs[k].method;
+    if (!method)
+      if (const auto it = s.slam_association.find(specs[k].backend); it != s.slam_association.end())
+        method = it->second;
+    lane->association = method                        ? std::string(slam::to_string(*method))
+                        : specs[k].backend == "graph" ? "tracking"
+                                                      : "ml";
+    lane->ideal = method == slam::AssociationMethod::kIdeal;
     lane->backend->reset(start_pose_, 0);
     if (s.event == core::EventType::kSkidpad) {
       // skidpad localises against its known layout
@@ -166,17 +178,20 @@ void SlamRunner::process(const DeliveredDetections& frame, TimeUs now) {
   // the back-ends' input: the odometry up to the frame's stamp and its cones, the same for all
   const TimeUs stamp = frame.observations.stamp;
   feed_.feed(odometry_, stamp);
-  const slam::SlamInput input{odometry_.take_delta(stamp), frame.observations};
+  const slam::SlamInput input{odometry_.take_delta(stamp), frame.observations, {}};
   frame_odometry_.push_back({stamp, frame_odometry_.back().second.compose(input.odometry.delta)});
   for (auto& lane_ptr : lanes_) {
     Lane& lane = *lane_ptr;
+    // the labels go only to a lane with the ideal association (an ablation)
+    slam::SlamInput lane_input = input;
+    if (lane.ideal) lane_input.true_ids = frame.labels.cone_id;
     if (!lane.thread) {
-      take_in(lane, frame, lane.run(input));
+      take_in(lane, frame, lane.run(lane_input));
       continue;
     }
     // on the lane's thread (one update at a time, in order)
     std::future<UpdateResult> result =
-        lane.thread->post([&lane, input] { return lane.run(input); });
+        lane.thread->post([&lane, lane_input] { return lane.run(lane_input); });
     lane.pending.push_back({now + latency_us_, frame, input.odometry.delta, std::move(result)});
   }
 }
@@ -266,6 +281,9 @@ nlohmann::json SlamRunner::all_metrics() const {
   for (const auto& lane : lanes_) {
     nlohmann::json m = lane->scorer.metrics(lane->last_estimate);
     m["role"] = lane->driving ? "drive" : "shadow";
+    m["association"] = lane->association;
+    // an ablation that read the labels: never a figure a car could reach
+    m["ideal_association"] = lane->ideal;
     out[lane->name] = std::move(m);
   }
   return out;

@@ -34,6 +34,10 @@ struct OdometryDelta {
 struct SlamInput {
   OdometryDelta odometry;
   core::ConeObservations observations;
+  /// The true cone id of each observation (-1: clutter). Empty, except for a back-end given
+  /// the ideal association (an ablation: the harness fills it for that lane only, and every
+  /// output of that lane says so).
+  std::vector<int> true_ids;
 };
 
 /// What a backend did with one observation of the last batch.

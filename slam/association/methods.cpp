@@ -20,6 +20,7 @@ constexpr Named kNames[] = {
     {AssociationMethod::kScnn, "scnn"},
     {AssociationMethod::kJcbb, "jcbb"},
     {AssociationMethod::kTrackingAided, "tracking"},
+    {AssociationMethod::kIdeal, "ideal"},
 };
 
 // a pairing that passed the individual gate
@@ -211,6 +212,20 @@ std::vector<int> associate(const AssociationParams& params, const AssociationPro
         }
       std::sort(near.begin(), near.end(), by_cost);
       greedy(near, pairing_of, taken);
+      return pairing_of;
+    }
+    case AssociationMethod::kIdeal: {
+      // the landmark of the observation's true cone, when there is one in reach
+      for (int i = 0; i < n; ++i) {
+        const int label = p.observation_label(i);
+        if (label < 0) continue;
+        for (int j = 0; j < p.candidates(); ++j) {
+          if (taken[j] || p.candidate_label(j) != label) continue;
+          pairing_of[i] = j;
+          taken[j] = 1;
+          break;
+        }
+      }
       return pairing_of;
     }
     case AssociationMethod::kMaximumLikelihood: {

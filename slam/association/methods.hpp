@@ -30,13 +30,17 @@ enum class AssociationMethod {
   /// Perception's track ids first (a landmark remembers the track it was last matched with),
   /// then maximum likelihood for the rest (the FST thesis).
   kTrackingAided,
+  /// From the ground-truth labels: an observation pairs with the landmark first made from the
+  /// same true cone. For ablation only (what the others lose to wrong pairings); flagged in
+  /// every output that uses it.
+  kIdeal,
 };
 
-/// The method's name as scenarios and metrics spell it: nn, ml, scnn, jcbb, tracking.
+/// The method's name as scenarios and metrics spell it: nn, ml, scnn, jcbb, tracking, ideal.
 std::string_view to_string(AssociationMethod method);
 /// The method of a name, nullopt for an unknown one.
 std::optional<AssociationMethod> association_from_string(std::string_view name);
-/// "nn, ml, scnn, jcbb, tracking" for error messages.
+/// "nn, ml, scnn, jcbb, tracking, ideal" for error messages.
 std::string association_names();
 
 /// Parameters shared by the methods.
@@ -77,6 +81,10 @@ class AssociationProblem {
   /// Perception's track id of an observation and the one a candidate carries (-1: none).
   virtual int observation_track(int observation) const = 0;
   virtual int candidate_track(int candidate) const = 0;
+  /// The true cone of an observation and of a candidate landmark (ideal association only;
+  /// -1: unknown or clutter).
+  virtual int observation_label(int) const { return -1; }
+  virtual int candidate_label(int) const { return -1; }
 };
 
 /// The pairing of each observation: a candidate index, or -1.

@@ -193,8 +193,12 @@ class MarginalProblem : public AssociationProblem {
   MarginalProblem(const AssociationConfig& config, const core::Pose2& pose,
                   const Eigen::Matrix3d* pose_covariance,
                   const std::vector<LandmarkCandidate>& candidates,
-                  const core::ConeObservations& observations)
-      : config_(config), pose_(pose), candidates_(candidates), observations_(observations) {
+                  const core::ConeObservations& observations, const std::vector<int>* labels)
+      : config_(config),
+        pose_(pose),
+        candidates_(candidates),
+        observations_(observations),
+        labels_(labels) {
     pose_covariance_ = pose_covariance ? *pose_covariance : Eigen::Matrix3d::Zero();
     for (const LandmarkCandidate& c : candidates) {
       Eigen::Matrix<double, 2, 3> hp;
@@ -226,6 +230,10 @@ class MarginalProblem : public AssociationProblem {
   }
   int observation_track(int i) const override { return observations_.cones[i].track_id; }
   int candidate_track(int j) const override { return candidates_[j].track_id; }
+  int observation_label(int i) const override {
+    return labels_ && i < static_cast<int>(labels_->size()) ? (*labels_)[i] : -1;
+  }
+  int candidate_label(int j) const override { return candidates_[j].label; }
 
  private:
   const AssociationConfig& config_;
@@ -233,6 +241,7 @@ class MarginalProblem : public AssociationProblem {
   Eigen::Matrix3d pose_covariance_;
   const std::vector<LandmarkCandidate>& candidates_;
   const core::ConeObservations& observations_;
+  const std::vector<int>* labels_;
   std::vector<core::Vec2> predicted_, in_map_;
   std::vector<Eigen::Matrix<double, 2, 3>> h_pose_;
   std::vector<Eigen::Matrix2d> landmark_term_;
@@ -243,8 +252,8 @@ class MarginalProblem : public AssociationProblem {
 std::vector<Association> associate_with_method(
     const AssociationParams& params, const AssociationConfig& config, const core::Pose2& pose,
     const Eigen::Matrix3d* pose_covariance, const std::vector<LandmarkCandidate>& candidates,
-    const core::ConeObservations& observations, bool allow_new) {
-  const MarginalProblem problem(config, pose, pose_covariance, candidates, observations);
+    const core::ConeObservations& observations, bool allow_new, const std::vector<int>* labels) {
+  const MarginalProblem problem(config, pose, pose_covariance, candidates, observations, labels);
   const std::vector<int> pairing = associate(params, problem);
   const int n_obs = problem.observations();
   std::vector<Association> out(n_obs);

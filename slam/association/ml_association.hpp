@@ -50,6 +50,8 @@ struct LandmarkCandidate {
   std::array<int, 5> class_votes{};
   /// Perception track id it was last matched with, -1 when none.
   int track_id = -1;
+  /// The true cone it was made from (ideal association only), -1 otherwise.
+  int label = -1;
   /// Extra isotropic position variance for drift since it was last seen (loop closure), m^2.
   double drift_variance_m2 = 0.0;
 };
@@ -90,6 +92,7 @@ std::vector<Association> associate(const AssociationConfig& config, const core::
 std::vector<Association> associate_with_method(
     const AssociationParams& params, const AssociationConfig& config, const core::Pose2& pose,
     const Eigen::Matrix3d* pose_covariance, const std::vector<LandmarkCandidate>& candidates,
-    const core::ConeObservations& observations, bool allow_new);
+    const core::ConeObservations& observations, bool allow_new,
+    const std::vector<int>* labels = nullptr);
 
 }  // namespace conesim::slam

@@ -141,6 +141,7 @@ class EkfProblem : public AssociationProblem {
     Eigen::Matrix2d h_landmark = Eigen::Matrix2d::Zero();
     std::array<int, 5> votes{};
     int track = -1;
+    int label = -1;
     // an old landmark of the start, a candidate only for closing the loop (with big orange
     // cones at the start, only big orange cones may pair with it)
     bool start_only = false;
@@ -148,14 +149,16 @@ class EkfProblem : public AssociationProblem {
 
   EkfProblem(const core::Pose2& pose, const Eigen::MatrixXd& p,
              const core::ConeObservations& observations, std::vector<Candidate> candidates,
-             int class_vote_margin, const std::vector<char>& usable, bool big_orange_closure)
+             int class_vote_margin, const std::vector<char>& usable, bool big_orange_closure,
+             const std::vector<int>& labels)
       : pose_(pose),
         p_(p),
         obs_(observations),
         cand_(std::move(candidates)),
         margin_(class_vote_margin),
         usable_(usable),
-        big_orange_closure_(big_orange_closure) {
+        big_orange_closure_(big_orange_closure),
+        labels_(labels) {
     for (Candidate& c : cand_)
       c.predicted = predict_observation(pose, c.position, &c.h_pose, &c.h_landmark);
     for (const auto& o : obs_.cones) in_map_.push_back(pose.transform(o.position));
@@ -192,6 +195,10 @@ class EkfProblem : public AssociationProblem {
   }
   int observation_track(int i) const override { return obs_.cones[i].track_id; }
   int candidate_track(int j) const override { return cand_[j].track; }
+  int observation_label(int i) const override {
+    return i < static_cast<int>(labels_.size()) ? labels_[i] : -1;
+  }
+  int candidate_label(int j) const override { return cand_[j].label; }
   const Candidate& candidate(int j) const { return cand_[j]; }
 
  private:
@@ -202,6 +209,7 @@ class EkfProblem : public AssociationProblem {
   int margin_;
   const std::vector<char>& usable_;
   bool big_orange_closure_;
+  const std::vector<int>& labels_;
   std::vector<core::Vec2> in_map_;
 };
 
@@ -209,6 +217,7 @@ class EkfProblem : public AssociationProblem {
 
 void EkfSlam::process(const SlamInput& input) {
   stamp_ = input.observations.stamp;
+  labels_ = input.true_ids;
   predict(input.odometry);
   const core::ConeObservations& obs = input.observations;
   const int n_obs = static_cast<int>(obs.cones.size());
@@ -257,11 +266,12 @@ void EkfSlam::process(const SlamInput& input) {
     c.fixed_cov = localising ? fixed_covariance_[lm.index] : Eigen::Matrix2d::Zero();
     c.votes = lm.class_votes;
     c.track = lm.track_id;
+    c.label = lm.label;
     c.start_only = !loop_open_ && !recent;
     candidates.push_back(c);
   }
   const EkfProblem problem(now, p_, obs, std::move(candidates), config_.class_vote_margin, usable,
-                           big_orange_closure);
+                           big_orange_closure, labels_);
   const auto start = std::chrono::steady_clock::now();
   const std::vector<int> pairing = associate(config_.association, problem);
   association_us_ =
@@ -358,7 +368,7 @@ void EkfSlam::update(const core::ConeObservations& obs,
   p_ = (0.5 * (p_ + p_.transpose())).eval();  // eval: the transpose must not alias the result
 }
 
-void EkfSlam::add_landmark(const core::ConeObservation& o, int id) {
+void EkfSlam::add_landmark(const core::ConeObservation& o, int id, int label) {
   // augment the state: l = p (+) z, with its covariance and its cross terms through the pose
   Eigen::Matrix<double, 2, 3> l_pose;
   Eigen::Matrix2d l_z;
@@ -380,6 +390,7 @@ void EkfSlam::add_landmark(const core::ConeObservation& o, int id) {
   lm.index = n;
   if (o.cls != core::ConeClass::kUnknown) lm.class_votes[static_cast<int>(o.cls)] = 1;
   lm.track_id = o.track_id;
+  lm.label = label;
   lm.first_travel_m = travel_m_;
   lm.last_seen_travel_m = travel_m_;
   lm.at_start = (l - start_.position()).norm() < config_.start_radius_m &&
@@ -410,7 +421,10 @@ void EkfSlam::handle_unmatched(const core::ConeObservations& obs) {
     for (size_t k = 0; k < preliminary_.size(); ++k) {
       if (seen_now[k]) continue;
       const double d = (preliminary_[k].position - q).norm();
-      if (d < best_d && class_compatible(o.cls, preliminary_[k].class_votes, 1)) {
+      // (the ideal association pairs by the true cone)
+      const bool ideal = config_.association.method == AssociationMethod::kIdeal;
+      if (ideal ? label_of(i) >= 0 && preliminary_[k].label == label_of(i)
+                : d < best_d && class_compatible(o.cls, preliminary_[k].class_votes, 1)) {
         best_d = d;
         best = static_cast<int>(k);
       }
@@ -423,11 +437,12 @@ void EkfSlam::handle_unmatched(const core::ConeObservations& obs) {
       p.sightings = 1;
       p.first_travel_m = travel_m_;
       p.track_id = o.track_id;
+      p.label = label_of(i);
       preliminary_.push_back(p);
       seen_now.push_back(1);
       associations_[i] = {p.id, Association::Kind::kNew};
       if (config_.confirm_sightings <= 1) {
-        add_landmark(o, p.id);
+        add_landmark(o, p.id, p.label);
         preliminary_.pop_back();
         seen_now.pop_back();
       }
@@ -442,7 +457,7 @@ void EkfSlam::handle_unmatched(const core::ConeObservations& obs) {
     if (p.sightings >= config_.confirm_sightings) {
       // confirmed: into the filter from this sighting, with the votes gathered so far
       const std::array<int, 5> votes = p.class_votes;
-      add_landmark(o, p.id);
+      add_landmark(o, p.id, p.label);
       landmarks_.back().class_votes = votes;
       preliminary_.erase(preliminary_.begin() + best);
       seen_now.erase(seen_now.begin() + best);

@@ -94,6 +94,7 @@ class EkfSlam : public Backend {
     int index = 0;  // first row of the landmark in the state
     std::array<int, 5> class_votes{};
     int track_id = -1;
+    int label = -1;  // the true cone it was made from (ideal association only)
     double first_travel_m = 0.0;
     double last_seen_travel_m = 0.0;
     bool at_start = false;
@@ -105,6 +106,7 @@ class EkfSlam : public Backend {
     int sightings = 0;
     double first_travel_m = 0.0;
     int track_id = -1;
+    int label = -1;
   };
 
   void predict(const OdometryDelta& odometry);
@@ -114,8 +116,10 @@ class EkfSlam : public Backend {
   // the Kalman update with the paired observations (observation index, landmark index)
   void update(const core::ConeObservations& observations,
               const std::vector<std::pair<int, int>>& pairs, bool pose_only);
-  void add_landmark(const core::ConeObservation& observation, int id);
+  void add_landmark(const core::ConeObservation& observation, int id, int label);
   void handle_unmatched(const core::ConeObservations& observations);
+  // the true cone of observation i (ideal association), -1 otherwise
+  int label_of(size_t i) const { return i < labels_.size() ? labels_[i] : -1; }
   void enter_localisation();
   core::Pose2 pose() const { return {x_(0), x_(1), x_(2)}; }
   core::Vec2 landmark_position(const Landmark& lm) const {
@@ -131,6 +135,7 @@ class EkfSlam : public Backend {
   std::vector<Eigen::Matrix2d> fixed_covariance_;
   std::vector<core::Vec2> fixed_position_;
   std::vector<Association> associations_;
+  std::vector<int> labels_;
   int next_id_ = 0;
   core::SlamPhase phase_ = core::SlamPhase::kMapping;
   bool map_complete_ = false;

@@ -130,6 +130,8 @@ class GraphSlam : public Backend {
     Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity();
     std::array<int, 5> class_votes{};
     int track_id = -1;
+    /// The true cone it was made from (ideal association only).
+    int label = -1;
     int sightings = 0;
     int misses = 0;
     bool confirmed = false;
@@ -192,6 +194,8 @@ class GraphSlam : public Backend {
   /// The first pose localised on the fixed map (poses before it belong to the mapping).
   int first_localised_pose_ = 1;
   std::vector<Association> associations_;
+  /// The labels of the batch being processed (ideal association only, else empty).
+  std::vector<int> labels_;
   core::SlamPhase phase_ = core::SlamPhase::kMapping;
   bool map_complete_ = false;
   int loop_closures_ = 0;

@@ -74,7 +74,7 @@ TEST_F(ScenarioFile, BadSlamBlocksNameTheKeyAndWhatWasExpected) {
             std::string::npos);
   EXPECT_NE(error_of(head + "slam: {drive: graph, association: psychic}\n")
                 .find("slam.association: expected an association method (nn, ml, scnn, jcbb, "
-                      "tracking), got 'psychic'"),
+                      "tracking, ideal), got 'psychic'"),
             std::string::npos);
   EXPECT_NE(error_of(head + "slam: {drive: graph, association: {ekf: x}}\n")
                 .find("slam.association.ekf: expected an association method"),
@@ -96,6 +96,12 @@ TEST_F(ScenarioFile, BadSlamBlocksNameTheKeyAndWhatWasExpected) {
                 .find("--set: slam.shadow: expected back-ends"),
             std::string::npos);
   EXPECT_NE(error_of(head + "slam: [graph]\n").find("slam: expected a map"), std::string::npos);
+  // the ideal association reads the labels: a shadow may use it, the driving back-end may not
+  EXPECT_NE(error_of(head + "slam: {drive: ekf, association: {ekf: ideal}}\n")
+                .find("slam.association: ideal reads the ground-truth labels: it is for shadow "
+                      "back-ends only"),
+            std::string::npos);
+  EXPECT_EQ(error_of(head + "slam: {drive: graph, shadow: ['graph:ideal', 'ekf:ideal']}\n"), "");
 }
 
 TEST_F(ScenarioFile, ShippedScenariosLoadForAllFourEvents) {

@@ -57,7 +57,7 @@ nlohmann::json without_timing(nlohmann::json m) {
 TEST(SlamLanes, ShadowsAreScoredAndLeaveTheDrivenTrajectoryBitIdentical) {
   const LaneRun alone = run_trackdrive({}, "alone");
   const LaneRun shadowed =
-      run_trackdrive({"slam.shadow=[ekf, 'ekf:jcbb', 'graph:nn']"}, "shadowed");
+      run_trackdrive({"slam.shadow=[ekf, 'ekf:jcbb', 'graph:nn', 'ekf:ideal']"}, "shadowed");
   ASSERT_TRUE(alone.result.referee.completed);
 
   // the car drove the same: every row's truth, command and driving estimate to the last digit
@@ -71,7 +71,7 @@ TEST(SlamLanes, ShadowsAreScoredAndLeaveTheDrivenTrajectoryBitIdentical) {
 
   // each shadow has its figures and its estimate columns
   const nlohmann::json& slam = shadowed.result.metrics["slam"];
-  for (const char* lane : {"ekf", "ekf-jcbb", "graph-nn"}) {
+  for (const char* lane : {"ekf", "ekf-jcbb", "graph-nn", "ekf-ideal"}) {
     ASSERT_TRUE(slam.contains(lane)) << lane;
     EXPECT_EQ(slam[lane]["role"], "shadow");
     EXPECT_GT(slam[lane]["updates"].get<int>(), 500) << lane;
@@ -79,7 +79,14 @@ TEST(SlamLanes, ShadowsAreScoredAndLeaveTheDrivenTrajectoryBitIdentical) {
   }
   EXPECT_EQ(slam["graph"]["role"], "drive");
   EXPECT_EQ(shadowed.result.metrics["slam_shadows"],
-            nlohmann::json::array({"ekf", "ekf-jcbb", "graph-nn"}));
+            nlohmann::json::array({"ekf", "ekf-jcbb", "graph-nn", "ekf-ideal"}));
+  // the labels reached the ideal lane only, and its figures say so
+  EXPECT_TRUE(slam["ekf-ideal"]["ideal_association"].get<bool>());
+  EXPECT_EQ(slam["ekf-ideal"]["association"], "ideal");
+  EXPECT_EQ(slam["ekf-ideal"]["da_wrong"].get<int>(), 0);
+  for (const char* lane : {"graph", "ekf", "ekf-jcbb", "graph-nn"})
+    EXPECT_FALSE(slam[lane]["ideal_association"].get<bool>()) << lane;
+  EXPECT_EQ(slam["ekf-jcbb"]["association"], "jcbb");
   EXPECT_NE(shadowed.trajectory[0].find(",ekf_x_m,ekf_y_m,ekf_yaw_rad,ekf-jcbb_x_m"),
             std::string::npos);
   // EKF SLAM in shadow meets the map and association targets of the GraphSLAM scenario

@@ -43,8 +43,12 @@ class Frame : public AssociationProblem {
   int candidate_track(int j) const override {
     return landmark_tracks_.empty() ? -1 : landmark_tracks_[j];
   }
+  int observation_label(int i) const override { return labels_.empty() ? -1 : labels_[i]; }
+  int candidate_label(int j) const override {
+    return landmark_labels_.empty() ? -1 : landmark_labels_[j];
+  }
 
-  std::vector<int> tracks_, landmark_tracks_;
+  std::vector<int> tracks_, landmark_tracks_, labels_, landmark_labels_;
 
  private:
   std::vector<core::Vec2> landmarks_, observations_;
@@ -117,6 +121,16 @@ TEST(AssociationMethods, TrackingAidedFollowsTheTrackWithinItsLooseGate) {
   f.tracks_ = {7, 8};
   f.landmark_tracks_ = {7, -1, 8, -1};
   EXPECT_EQ(associate(with(AssociationMethod::kTrackingAided), f), (std::vector<int>{0, 2}));
+}
+
+TEST(AssociationMethods, IdealPairsByTheLabelsAlone) {
+  // the labels say cone 0 is landmark 1's and cone 1 is landmark 3's, against the geometry;
+  // an unlabelled (clutter) observation stays unpaired
+  Frame f(0.5, 0.05, {{10.0, 0.0}, {10.8, 0.0}, {10.0, 4.0}, {10.8, 4.0}},
+          {{10.0, 0.0}, {10.0, 4.0}, {10.8, 0.0}});
+  f.labels_ = {11, 13, -1};
+  f.landmark_labels_ = {10, 11, 12, 13};
+  EXPECT_EQ(associate(with(AssociationMethod::kIdeal), f), (std::vector<int>{1, 3, -1}));
 }
 
 TEST(AssociationMethods, NamesRoundTripAndChiSquareQuantilesAreClose) {

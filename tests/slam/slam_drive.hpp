@@ -208,7 +208,7 @@ inline DriveResult drive(const tracks::Track& track, Backend& backend, const Dri
 
     // one cone batch: odometry delta, observations, SLAM update (timed)
     auto [observations, labels] = cone_sensor.sample(track, pose, t, nullptr);
-    SlamInput input{odometry.take_delta(t), observations};
+    SlamInput input{odometry.take_delta(t), observations, {}};
     const auto start = std::chrono::steady_clock::now();
     const double cpu_start = core::thread_cpu_ms();
     backend.process(input);
