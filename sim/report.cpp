@@ -279,7 +279,8 @@ std::string run_report_html(const fs::path& dir, const json& m) {
     if (m["slam"].contains(driving)) h << slam_section(dir, driving, m["slam"][driving], true);
     for (const auto& [name, figures] : m["slam"].items())
       if (name != driving) h << slam_section(dir, name, figures, false);
-    if (m["slam"].size() > 1) h << image_if_present(dir, "slam_lanes.png");
+    if (m["slam"].size() > 1)
+      h << image_if_present(dir, "slam_lanes_map.png") << image_if_present(dir, "slam_lanes.png");
   }
   h << perception_section(dir, m.value("perception", json::object())) << "</body></html>\n";
   return h.str();

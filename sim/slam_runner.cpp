@@ -347,6 +347,29 @@ void SlamRunner::write_report(const std::filesystem::path& dir) const {
           ranges_if_nothing_to_plot(data) +
           "set title 'map error over distance, every back-end (no alignment)'\n" + plot + "\n",
       data, dir / "slam_lanes.png", 1000, 500);
+
+  // every lane's final map over the true cones, one colour each
+  std::vector<PlotData> maps{{"truth", {}}};
+  for (const tracks::Cone& c : track_.cones)
+    maps[0].rows.push_back({c.position.x(), c.position.y()});
+  std::string map_plot =
+      "plot $truth using 1:2 with points pt 6 ps 1.4 lc rgb '#808080' title 'true cones'";
+  for (size_t k = 0; k < lanes_.size(); ++k) {
+    PlotData d{"map" + std::to_string(k), {}};
+    for (const core::MapCone& c : lanes_[k]->last_estimate.map)
+      d.rows.push_back({c.position.x(), c.position.y()});
+    if (d.rows.empty()) d.rows.push_back({NAN, NAN});
+    map_plot += ", $" + d.name + " using 1:2 with points pt 7 ps 0.5 lc rgb '" + kColours[k % 8] +
+                "' title '" + lanes_[k]->name + "'";
+    maps.push_back(std::move(d));
+  }
+  if (maps[0].rows.empty()) maps[0].rows.push_back({NAN, NAN});
+  render_png(
+      "set size ratio -1\nset grid\nset key outside right top\n"
+      "set xlabel 'x [m]'\nset ylabel 'y [m]'\n"
+      "set title \"every back-end's map over the true cones (no alignment)\"\n" +
+          map_plot + "\n",
+      maps, dir / "slam_lanes_map.png");
 }
 
 }  // namespace conesim::sim
