@@ -470,7 +470,8 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
                         number("yaw_noise_per_m", ekf.yaw_noise_per_m, e),
                         number("gate_chi2", ekf.association.gate_chi2, e),
                         number("joint_probability", ekf.association.joint_probability, e),
-                        number("nn_radius_m", ekf.association.nn_radius_m, e)});
+                        number("nn_radius_m", ekf.association.nn_radius_m, e),
+               number("track_gate_chi2", ekf.association.track_gate_chi2, e)});
         }},
        {"graph", [&](const YAML::Node& v) {
           const Where g{&context, "slam.graph"};
@@ -479,6 +480,7 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
                         integer("window_poses", graph.window_poses, g),
                         number("icr_sigma_m", graph.icr_sigma_m, g),
                         number("gate_chi2", graph.association.gate_chi2, g),
+               number("track_gate_chi2", graph.association.track_gate_chi2, g),
                         {"localise_after_loop_closure", [&](const YAML::Node& x) {
                            graph.localise_after_loop_closure =
                                read_bool(x, g, "localise_after_loop_closure");
@@ -839,10 +841,15 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                  "ideal reads the ground-truth labels: it is for shadow back-ends only (e.g. "
                  "shadow: [" +
                      s.slam + ":ideal]), never for the one that drives");
-  if (const std::string e = s.slam_settings.ekf.validate(); !e.empty())
-    context.fail_check("slam.ekf", e);
-  if (const std::string e = s.slam_settings.graph.validate(); !e.empty())
-    context.fail_check("slam.graph", e);
+  // (the association's parameters sit beside the others under slam.ekf)
+  if (std::string e = s.slam_settings.ekf.validate(); !e.empty())
+    context.fail_check("slam.ekf", e.starts_with("association.") ? e.substr(12) : e);
+  if (std::string e = s.slam_settings.graph.validate(); !e.empty())
+    context.fail_check("slam.graph", e.starts_with("graph_slam.") ? e.substr(11) : e);
+  if (!(s.slam_settings.graph.association.gate_chi2 > 0.0))
+    context.fail("slam.graph.gate_chi2", "expected a chi-square gate > 0");
+  if (!(s.slam_settings.graph.association.track_gate_chi2 > 0.0))
+    context.fail("slam.graph.track_gate_chi2", "expected a chi-square gate > 0");
   if (s.slam != "none" && s.perception == "ground_truth")
     context.fail("slam",
                  "SLAM needs observations with noise: set perception to "

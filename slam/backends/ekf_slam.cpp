@@ -39,6 +39,7 @@ std::string EkfSlamConfig::validate() const {
   if (!(association.joint_probability > 0.5 && association.joint_probability < 1.0))
     return "association.joint_probability: expected a probability in (0.5, 1)";
   if (!(association.nn_radius_m > 0.0)) return "association.nn_radius_m: expected > 0 m";
+  if (!(association.track_gate_chi2 > 0.0)) return "association.track_gate_chi2: expected > 0";
   return {};
 }
 

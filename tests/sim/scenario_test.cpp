@@ -89,8 +89,14 @@ TEST_F(ScenarioFile, BadSlamBlocksNameTheKeyAndWhatWasExpected) {
   EXPECT_NE(error_of(head + "slam: {drive: ekf, ekf: {confirm_sightings: 0}}\n")
                 .find("slam.ekf.confirm_sightings: expected a count >= 1"),
             std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, graph: {window_poses: 0}}\n")
+                .find("slam.graph.window_poses: expected >= 1"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, graph: {track_gate_chi2: -1}}\n")
+                .find("slam.graph.track_gate_chi2: expected a chi-square gate > 0"),
+            std::string::npos);
   EXPECT_NE(error_of(head + "slam: {drive: ekf, ekf: {joint_probability: 2}}\n")
-                .find("slam.ekf.association.joint_probability"),
+                .find("slam.ekf.joint_probability: expected a probability in (0.5, 1)"),
             std::string::npos);
   EXPECT_NE(error_of(head + "slam: graph\n", {"slam.shadow=[nope]"})
                 .find("--set: slam.shadow: expected back-ends"),
