@@ -455,6 +455,7 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
                         number("preliminary_max_travel_m", ekf.preliminary_max_travel_m, e),
                         number("preliminary_radius_m", ekf.preliminary_radius_m, e),
                         number("new_landmark_min_distance_m", ekf.new_landmark_min_distance_m, e),
+               number("new_landmark_chi2", ekf.new_landmark_chi2, e),
                         number("unseen_exclusion_m", ekf.unseen_exclusion_m, e),
                         number("loop_min_travel_m", ekf.loop_min_travel_m, e),
                         number("start_radius_m", ekf.start_radius_m, e),

@@ -25,6 +25,7 @@ std::string EkfSlamConfig::validate() const {
   if (!(preliminary_max_travel_m > 0.0)) return "preliminary_max_travel_m: expected > 0 m";
   if (!(preliminary_radius_m > 0.0)) return "preliminary_radius_m: expected > 0 m";
   if (!(new_landmark_min_distance_m >= 0.0)) return "new_landmark_min_distance_m: expected >= 0 m";
+  if (!(new_landmark_chi2 > 0.0)) return "new_landmark_chi2: expected > 0";
   if (!(unseen_exclusion_m > 0.0)) return "unseen_exclusion_m: expected > 0 m";
   if (!(loop_min_travel_m >= 0.0)) return "loop_min_travel_m: expected >= 0 m";
   if (!(start_radius_m > 0.0)) return "start_radius_m: expected > 0 m";
@@ -411,10 +412,23 @@ void EkfSlam::handle_unmatched(const core::ConeObservations& obs) {
     if (associations_[i].kind == Association::Kind::kMatched) continue;
     const core::ConeObservation& o = obs.cones[i];
     const core::Vec2 q = now.transform(o.position);
-    // near a landmark (also an old one): a duplicate or clutter, nothing new
+    // near a landmark (also an old one) and statistically possibly the same cone: a duplicate
+    // or clutter, nothing new (the pose's and the landmark's marginal covariances, without
+    // their cross term: a wider gate, so fewer duplicates); a cone a few decimetres from a
+    // landmark that the uncertainty cannot explain (the paired big orange cones of a gate) is new
     bool near = false;
-    for (const Landmark& lm : landmarks_)
-      if ((landmark_position(lm) - q).norm() < config_.new_landmark_min_distance_m) near = true;
+    for (const Landmark& lm : landmarks_) {
+      const core::Vec2 l = landmark_position(lm);
+      if ((l - q).norm() >= config_.new_landmark_min_distance_m) continue;
+      Eigen::Matrix<double, 2, 3> h_pose;
+      Eigen::Matrix2d h_landmark;
+      const core::Vec2 predicted = predict_observation(now, l, &h_pose, &h_landmark);
+      const Eigen::Matrix2d s =
+          h_pose * p_.topLeftCorner<3, 3>() * h_pose.transpose() +
+          h_landmark * p_.block<2, 2>(lm.index, lm.index) * h_landmark.transpose() + o.covariance;
+      const Eigen::Vector2d v = o.position - predicted;
+      if (v.dot(s.ldlt().solve(v)) < config_.new_landmark_chi2) near = true;
+    }
     if (near) continue;  // rejected
     // the nearest preliminary landmark of a compatible class, once per frame
     int best = -1;

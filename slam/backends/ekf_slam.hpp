@@ -25,9 +25,10 @@ struct EkfSlamConfig {
   double preliminary_max_travel_m = 15.0;
   /// Preliminary sightings are merged within this distance (map frame), m.
   double preliminary_radius_m = 1.0;
-  /// An unmatched observation within this distance of a landmark (or a preliminary one) in the
-  /// map frame starts nothing: a duplicate or clutter, m.
+  /// An unmatched observation within this distance of a landmark in the map frame, m, and
+  /// within this squared Mahalanobis distance of it, starts nothing: a duplicate or clutter.
   double new_landmark_min_distance_m = 1.0;
+  double new_landmark_chi2 = 40.0;
   /// Before the loop closes, a landmark not seen for this distance driven takes no part in the
   /// association (a drifted pose would pair it with the wrong cone), m.
   double unseen_exclusion_m = 25.0;
