@@ -404,14 +404,15 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
        {"shadow",
         [&](const YAML::Node& v) {
           s.slam_shadows.clear();
-          YAML::Node list = v;
-          if (v.IsScalar()) {
-            list = YAML::Node(YAML::NodeType::Sequence);
-            list.push_back(v);
-          }
-          if (!list.IsSequence())
+          // one name or a list of them (a YAML node assigned to is changed in place, so the
+          // items are gathered rather than the node rebuilt)
+          std::vector<YAML::Node> items;
+          if (v.IsScalar()) items.push_back(v);
+          if (v.IsSequence())
+            for (const YAML::Node& item : v) items.push_back(item);
+          if (!v.IsScalar() && !v.IsSequence())
             w.fail(v, "shadow", "expected a list of back-ends, e.g. [ekf], got " + describe(v));
-          for (const YAML::Node& item : list) {
+          for (const YAML::Node& item : items) {
             const std::string entry = read_string(item, w, "shadow");
             // NAME or NAME:METHOD (the back-end with that association)
             const size_t colon = entry.find(':');
@@ -818,7 +819,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
     if (slam_criteria && s.slam == "none")
       context.fail("pass",
                    "SLAM criteria (max_map_rmse_m, max_ate_rmse_m, min_da_correct_fraction, "
-                   "max_false_loop_closures, max_map_missed_fraction) need slam: graph");
+                   "max_false_loop_closures, max_map_missed_fraction) need slam: graph or ekf");
   }
   if (!(s.start_delay_s >= 0.0 && s.start_delay_s <= 60.0))
     context.fail("start_delay_s", "expected a delay from 0 to 60 s");

@@ -57,6 +57,10 @@ TEST_F(ScenarioFile, SlamBlockNamesTheDrivingAndTheShadowBackEnds) {
   ASSERT_EQ(set.slam_shadows.size(), 1u);
   EXPECT_EQ(set.slam_shadows[0].backend, "ekf");
   EXPECT_EQ(load_scenario(write(head + "slam: graph\n"), {"slam.drive=ekf"}).slam, "ekf");
+  // one shadow without brackets
+  const Scenario one = load_scenario(write(head + "slam: graph\n"), {"slam.shadow=ekf"});
+  ASSERT_EQ(one.slam_shadows.size(), 1u);
+  EXPECT_EQ(one.slam_shadows[0].lane_name(), "ekf");
 }
 
 TEST_F(ScenarioFile, BadSlamBlocksNameTheKeyAndWhatWasExpected) {
