@@ -7,7 +7,7 @@
 #include <stdexcept>
 
 #include "core/time.hpp"
-#include "sim/gnuplot.hpp"
+#include "sim/slam_figures.hpp"
 #include "slam/factory.hpp"
 
 namespace conesim::sim {
@@ -322,54 +322,14 @@ std::vector<core::Pose2> SlamRunner::lane_poses(size_t lane_index, const std::ve
 }
 
 void SlamRunner::write_report(const std::filesystem::path& dir) const {
-  for (const auto& lane : lanes_)
-    lane->scorer.write_report(dir, lane->driving ? "slam_" : "slam_" + lane->name + "_",
-                              lane->driving ? "" : "slam_" + lane->name + "_", lane->last_estimate);
-  // every lane's map error over distance on one plot, one colour each
-  if (lanes_.size() < 2) return;
-  std::vector<PlotData> data;
-  std::string plot = "plot ";
-  static const char* kColours[] = {"#1f4fd8", "#d62728", "#2ca02c", "#9467bd",
-                                   "#ff7f0e", "#8c564b", "#e377c2", "#17becf"};
-  for (size_t k = 0; k < lanes_.size(); ++k) {
-    PlotData d{"lane" + std::to_string(k), {}};
-    for (const auto& row : lanes_[k]->scorer.map_error_over_distance())
-      d.rows.push_back({row.distance_m, row.rmse_m[0]});
-    if (d.rows.empty()) d.rows.push_back({NAN, NAN});
-    plot += std::string(k ? ", " : "") + "$" + d.name + " using 1:2 with lines lw 1.5 lc rgb '" +
-            kColours[k % 8] + "' title '" + lanes_[k]->name +
-            (lanes_[k]->driving ? " (drives)" : "") + "'";
-    data.push_back(std::move(d));
+  std::vector<LaneFigures> figures;
+  for (const auto& lane : lanes_) {
+    write_slam_figures(lane->scorer, track_, lane->last_estimate, dir,
+                       lane->driving ? "slam_" : "slam_" + lane->name + "_",
+                       lane->driving ? "" : "slam_" + lane->name + "_");
+    figures.push_back({lane->name, lane->driving, &lane->scorer, &lane->last_estimate});
   }
-  render_png(
-      "set datafile missing 'nan'\nset grid\nset key outside right top\n"
-      "set xlabel 'distance driven [m]'\nset ylabel 'map RMSE [m]'\nset yrange [0:*]\n" +
-          ranges_if_nothing_to_plot(data) +
-          "set title 'map error over distance, every back-end (no alignment)'\n" + plot + "\n",
-      data, dir / "slam_lanes.png", 1000, 500);
-
-  // every lane's final map over the true cones, one colour each
-  std::vector<PlotData> maps{{"truth", {}}};
-  for (const tracks::Cone& c : track_.cones)
-    maps[0].rows.push_back({c.position.x(), c.position.y()});
-  std::string map_plot =
-      "plot $truth using 1:2 with points pt 6 ps 1.4 lc rgb '#808080' title 'true cones'";
-  for (size_t k = 0; k < lanes_.size(); ++k) {
-    PlotData d{"map" + std::to_string(k), {}};
-    for (const core::MapCone& c : lanes_[k]->last_estimate.map)
-      d.rows.push_back({c.position.x(), c.position.y()});
-    if (d.rows.empty()) d.rows.push_back({NAN, NAN});
-    map_plot += ", $" + d.name + " using 1:2 with points pt 7 ps 0.5 lc rgb '" + kColours[k % 8] +
-                "' title '" + lanes_[k]->name + "'";
-    maps.push_back(std::move(d));
-  }
-  if (maps[0].rows.empty()) maps[0].rows.push_back({NAN, NAN});
-  render_png(
-      "set size ratio -1\nset grid\nset key outside right top\n"
-      "set xlabel 'x [m]'\nset ylabel 'y [m]'\n"
-      "set title \"every back-end's map over the true cones (no alignment)\"\n" +
-          map_plot + "\n",
-      maps, dir / "slam_lanes_map.png");
+  if (figures.size() > 1) write_lanes_figures(figures, track_, dir);
 }
 
 }  // namespace conesim::sim

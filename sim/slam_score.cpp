@@ -2,12 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <limits>
 #include <numbers>
 
 #include "sim/evaluation.hpp"
-#include "sim/gnuplot.hpp"
 
 namespace conesim::sim {
 
@@ -312,99 +310,6 @@ nlohmann::json SlamScorer::metrics(const core::Estimate& e) const {
     m["association_us_p99"] = nullptr;
   }
   return m;
-}
-
-void SlamScorer::write_report(const std::filesystem::path& dir, const std::string& prefix,
-                              const std::string& csv_prefix,
-                              const core::Estimate& final_estimate) const {
-  // map.csv: every estimated cone with the true cone it stands for
-  const std::vector<MapMatch> matches = match_map(final_estimate.map);
-  {
-    std::ofstream csv(dir / (csv_prefix + "map.csv"));
-    csv << "id,class,x_m,y_m,var_x_m2,cov_xy_m2,var_y_m2,true_cone_id,error_m\n";
-    for (const MapMatch& m : matches) {
-      const auto& c = m.estimate;
-      csv << c.id << "," << core::to_string(c.cls) << "," << c.position.x() << "," << c.position.y()
-          << "," << c.covariance(0, 0) << "," << c.covariance(0, 1) << "," << c.covariance(1, 1)
-          << "," << m.true_cone_id << "," << m.error_m << "\n";
-    }
-  }
-
-  // the map over ground truth, with the wrong associations marked
-  PlotData truth{"truth", {}}, mapped{"mapped", {}}, spurious{"spurious", {}}, wrong{"wrong", {}};
-  for (const auto& c : track_.cones) truth.rows.push_back({c.position.x(), c.position.y()});
-  for (const MapMatch& m : matches)
-    (m.true_cone_id >= 0 ? mapped : spurious)
-        .rows.push_back({m.estimate.position.x(), m.estimate.position.y()});
-  for (const auto& p : wrong_association_places_) wrong.rows.push_back({p.x(), p.y()});
-  for (PlotData* d : {&truth, &mapped, &spurious, &wrong})
-    if (d->rows.empty()) d->rows.push_back({NAN, NAN});
-  const std::string header =
-      "set size ratio -1\nset grid\nset key outside right top\n"
-      "set xlabel 'x [m]'\nset ylabel 'y [m]'\n";
-  render_png(
-      header +
-          "set title 'map over ground truth (no alignment)'\n"
-          "plot $truth using 1:2 with points pt 6 ps 1.2 lc rgb '#808080' title 'true cones', "
-          "$mapped using 1:2 with points pt 7 ps 0.6 lc rgb '#1f4fd8' title 'mapped', "
-          "$spurious using 1:2 with points pt 2 ps 1.5 lc rgb '#d62728' title 'spurious', "
-          "$wrong using 1:2 with points pt 4 ps 1.5 lc rgb '#ff7f0e' title 'wrong association (" +
-          std::to_string(wrong_association_places_.size()) + ")'\n",
-      {truth, mapped, spurious, wrong}, dir / (prefix + "map.png"));
-
-  // the map error per class over distance driven: a table and its figure
-  {
-    std::ofstream csv(dir / (csv_prefix + "map_error.csv"));
-    csv << "distance_m,matched,rmse_m";
-    for (core::ConeClass c : kScoredClasses) csv << ",rmse_" << core::to_string(c) << "_m";
-    csv << "\n";
-    for (const MapErrorSnapshot& row : map_error_over_distance_) {
-      csv << row.distance_m << "," << row.matched;
-      for (double r : row.rmse_m) {
-        csv << ",";
-        if (!std::isnan(r)) csv << r;
-      }
-      csv << "\n";
-    }
-  }
-  PlotData map_error{"map_error", {}};
-  for (const MapErrorSnapshot& row : map_error_over_distance_) {
-    map_error.rows.push_back({row.distance_m});
-    map_error.rows.back().insert(map_error.rows.back().end(), row.rmse_m.begin(), row.rmse_m.end());
-  }
-  if (map_error.rows.empty()) map_error.rows.push_back({NAN, NAN, NAN, NAN, NAN, NAN});
-  render_png(
-      "set datafile missing 'nan'\nset grid\nset key outside right top\n"
-      "set xlabel 'distance driven [m]'\nset ylabel 'map RMSE [m]'\nset yrange [0:*]\n" +
-          ranges_if_nothing_to_plot({map_error}) +
-          "set title 'map error per class over distance (observed cones, no alignment)'\n"
-          "plot $map_error using 1:2 with lines lw 2 dt 2 lc rgb '#000000' title 'all', "
-          "$map_error using 1:3 with lines lw 1.5 lc rgb '#1f4fd8' title 'blue', "
-          "$map_error using 1:4 with lines lw 1.5 lc rgb '#e6b800' title 'yellow', "
-          "$map_error using 1:5 with lines lw 1.5 lc rgb '#ff7f0e' title 'orange small', "
-          "$map_error using 1:6 with lines lw 1.5 lc rgb '#d62728' title 'orange big'\n",
-      {map_error}, dir / (prefix + "map_error.png"), 1000, 500);
-
-  // the trajectory and its error along the run
-  PlotData paths{"paths", {}}, error{"error", {}};
-  for (size_t i = 0; i < true_path_.size(); ++i) {
-    paths.rows.push_back(
-        {true_path_[i].x, true_path_[i].y, estimated_path_[i].x, estimated_path_[i].y});
-    error.rows.push_back(
-        {true_odometer_[i], (estimated_path_[i].position() - true_path_[i].position()).norm()});
-  }
-  if (paths.rows.empty()) paths.rows.push_back({NAN, NAN, NAN, NAN});
-  if (error.rows.empty()) error.rows.push_back({NAN, NAN});
-  render_png(header + ranges_if_nothing_to_plot({paths}) +
-                 "set title 'trajectory: truth and estimate'\n"
-                 "plot $paths using 1:2 with lines lw 2 lc rgb '#808080' title 'true', "
-                 "$paths using 3:4 with lines lw 1 lc rgb '#d62728' title 'estimated'\n",
-             {paths}, dir / (prefix + "trajectory.png"));
-  render_png("set grid\nset xlabel 'distance driven [m]'\nset ylabel 'position error [m]'\n" +
-                 ranges_if_nothing_to_plot({error}) +
-                 "set title 'position error of the estimate over distance (no alignment)'\n"
-                 "plot $error using 1:2 with lines lw 1.5 lc rgb '#d62728' notitle\n",
-             {error}, dir / (prefix + "error.png"), 1000, 500);
 }
 
 }  // namespace conesim::sim

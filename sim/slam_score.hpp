@@ -108,12 +108,6 @@ class SlamScorer {
   int false_loop_closures() const { return false_loop_closures_; }
   int loop_closures() const { return loop_closures_; }
 
-  /// Writes <csv_prefix>map.csv, <csv_prefix>map_error.csv and the map, map-error and
-  /// trajectory figures (<prefix>map.png, <prefix>map_error.png, <prefix>trajectory.png,
-  /// <prefix>error.png) for the final estimate into `dir`.
-  void write_report(const std::filesystem::path& dir, const std::string& prefix,
-                    const std::string& csv_prefix, const core::Estimate& final_estimate) const;
-
  private:
   void snapshot_map_error(double distance_m, const core::Estimate& estimate);
   const tracks::Cone& true_cone(int id) const { return track_.cones[cone_index_[id]]; }
