@@ -95,8 +95,8 @@ CircleResult drive_circle(double r, double start_mps, double ramp_mps2) {
 }
 
 TEST(MeasuredGrip, SteadyCircleReachesTheEnvelopesLateralLimit) {
-  // measured: 0.983 of the envelope on the 9.125 m circle (1.55 g at 12.0 m/s, as docs/vehicle.md
-  // gives) and 0.979 on the 20 m one (1.75 g at 18.6 m/s): the car reaches 0.93 of its tyre
+  // measured: 0.983 of the envelope on the 9.125 m circle (1.55 g at 12.0 m/s, as VEHICLE_NOTES
+  // found) and 0.979 on the 20 m one (1.75 g at 18.6 m/s): the car reaches 0.93 of its tyre
   // friction where the envelope assumes kMeasuredGripShare 0.95, a 2 % difference that puts the
   // lap-time bound 1 % on the fast side (speed goes with the root of the grip).
   // the speed rises by 0.05 m/s per second: v^2 / R rises by under 0.15 m/s^2 over the
@@ -143,7 +143,7 @@ TEST(MeasuredGrip, AccelerationMatchesTheStandingStartBound) {
 
 TEST(MeasuredGrip, FullLockSweepsWiderThanTheFsgMinimumHairpin) {
   // at walking pace on full lock the car turns a rear-axle circle of 8.7 m, not the kinematic
-  // 6.0 m (L / tan 27 deg): the anti-Ackermann front tyres fight (docs/vehicle.md: -18 % yaw rate
+  // 6.0 m (L / tan 27 deg): the anti-Ackermann front tyres fight (VEHICLE_NOTES: -18 % yaw rate
   // at 17 deg). Its outer front corner sweeps 11.0-11.2 m across, more than an FSG minimum
   // hairpin (9 m outside diameter) holds: the generator's minimum hairpins are not drivable by
   // this car without cones; --hairpin-diameter 12 makes ones it can turn
