@@ -1,6 +1,6 @@
 #pragma once
 // Raw sensor data as the system under test receives it, and the ground-truth labels that
-// travel beside it (ARCHITECTURE decision 3: only the evaluator reads labels).
+// travel beside it (docs/architecture.md: only the scorers read labels).
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>

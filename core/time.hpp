@@ -14,8 +14,8 @@ using TimeUs = int64_t;
 inline constexpr TimeUs kUsPerSecond = 1'000'000;
 
 /// The physics step, microseconds. Every schedule (sensor rates, the driver, the camera) is a
-/// whole number of steps, so that "t % period == 0" fires at every sample. VEHICLE_NOTES.md
-/// measured identical car behaviour at 0.5, 1 and 2 ms; 2 ms halves the physics cost.
+/// whole number of steps, so that "t % period == 0" fires at every sample. The car
+/// behaved the same at 0.5, 1 and 2 ms (docs/vehicle.md); 2 ms halves the physics cost.
 inline constexpr TimeUs kPhysicsStepUs = 2000;
 
 /// True when a rate's period is a whole number of physics steps.

@@ -1,7 +1,7 @@
 #pragma once
 // Draws the track's cones into a MuJoCo abstract scene: each cone is one textured mesh geom
 // (vehicle_models/cone_meshes.hpp) painted in its FSG colours. Cones are not in the physics
-// model (ARCHITECTURE decision 1), so they are appended after mjv_updateScene, every frame.
+// model (docs/architecture.md), so they are appended after mjv_updateScene, every frame.
 
 #include <mujoco/mujoco.h>
 

@@ -1,6 +1,6 @@
 #pragma once
 // The ray-cast LiDAR: the ground plane and every cone's Embree mesh, swept column by column
-// from the vehicle pose at each column's firing time (ARCHITECTURE decision 4).
+// from the vehicle pose at each column's firing time (docs/architecture.md).
 //
 // Per sweep the harness calls, after the sweep has ended:
 //   PoseHistory poses;                           // push(t, vehicle pose) every physics step

@@ -16,15 +16,6 @@ constexpr double kScoreRangeM = 30.0;
 // a cone that returned fewer points than this is beyond what a cone detector can find
 constexpr int kMinReturns = 3;
 
-// where the vehicle frame at `later` lies in the vehicle frame at `earlier`, moving at a
-// constant speed and yaw rate (the autonomy's own estimate) for dt seconds
-core::Pose2 motion_over(const slam::frontend::SweepMotion& m, double dt) {
-  const double dyaw = m.yaw_rate_rps * dt;
-  const double ds = m.speed_mps * dt;
-  // the chord of the arc, at half the heading change
-  return {ds * std::cos(0.5 * dyaw), ds * std::sin(0.5 * dyaw), dyaw};
-}
-
 // the true cone a LiDAR cluster stands for: the label most of its points carry (-1 when most
 // points are ground or no cone has a majority)
 int cluster_label(const slam::frontend::LidarCone& cone, const core::PointCloudLabels& labels) {
@@ -39,6 +30,13 @@ int cluster_label(const slam::frontend::LidarCone& cone, const core::PointCloudL
 }
 
 }  // namespace
+
+core::Pose2 motion_over(const slam::frontend::SweepMotion& m, double dt) {
+  const double dyaw = m.yaw_rate_rps * dt;
+  const double ds = m.speed_mps * dt;
+  // the chord of the arc, at half the heading change
+  return {ds * std::cos(0.5 * dyaw), ds * std::sin(0.5 * dyaw), dyaw};
+}
 
 PerceptionView perception_view(const Scenario& s) {
   PerceptionView v;

@@ -46,6 +46,10 @@ struct PerceptionView {
 /// field of view out to the stereo detector's range.
 PerceptionView perception_view(const Scenario& scenario);
 
+/// Where the vehicle frame dt seconds later lies in the vehicle frame now, moving at the
+/// motion's constant speed and yaw rate (the chord of the arc).
+core::Pose2 motion_over(const slam::frontend::SweepMotion& motion, double dt);
+
 /// Turns LiDAR sweeps and stereo pairs into cone frames for SLAM, and scores them.
 class PerceptionRunner {
  public:

@@ -438,9 +438,10 @@ RunRow make_row(const RegressionRun& run, const json& m, int exit_code,
   r.lap_time_bound_s = number_or_nan(m, "lap_time_bound_s");
   if (std::isfinite(r.best_lap_s) && r.lap_time_bound_s > 0.0)
     r.bound_ratio = r.best_lap_s / r.lap_time_bound_s;
-  // the SLAM backend's figures (one backend per run)
+  // the driving SLAM back-end's figures (shadow back-ends are beside it under slam)
   if (m.contains("slam") && m["slam"].is_object() && !m["slam"].empty()) {
-    const json& f = m["slam"].begin().value();
+    const std::string driving = m.value("slam_driving", std::string());
+    const json& f = m["slam"].contains(driving) ? m["slam"][driving] : m["slam"].begin().value();
     r.map_rmse_m = number_or_nan(f, "map_rmse_m");
     r.ate_rmse_m = number_or_nan(f, "ate_rmse_m");
     r.da_correct_fraction = number_or_nan(f, "da_correct_fraction");

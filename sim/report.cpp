@@ -129,9 +129,18 @@ std::string events_section(const json& m) {
 }
 
 // one SLAM backend's figures, its map per class and its pictures
-std::string slam_section(const fs::path& dir, const std::string& name, const json& f) {
+// prefix: the figures' file prefix, slam_ for the driving back-end, slam_<name>_ for a shadow
+std::string slam_section(const fs::path& dir, const std::string& name, const json& f,
+                         bool driving) {
   std::ostringstream h;
-  h << "<h2>SLAM: " << html_escape(name) << "</h2>\n<table>\n";
+  const std::string prefix = driving ? "slam_" : "slam_" + name + "_";
+  h << "<h2>SLAM: " << html_escape(name)
+    << (driving ? " (drives the car)" : " (shadow, scored only)") << "</h2>\n";
+  if (f.value("ideal_association", false))
+    h << "<p><b>Ideal association:</b> this back-end was paired with the cones by the "
+         "ground-truth labels, an ablation no car can run; its figures show what the others "
+         "lose to association errors.</p>\n";
+  h << "<table>\n";
   struct Headline {
     const char* key;
     const char* label;
@@ -168,8 +177,9 @@ std::string slam_section(const fs::path& dir, const std::string& name, const jso
         << with_unit(number(c, "rmse_m"), "m") << "</td></tr>\n";
     h << "</table>\n";
   }
-  h << image_if_present(dir, "slam_map.png") << image_if_present(dir, "slam_map_error.png")
-    << image_if_present(dir, "slam_trajectory.png") << image_if_present(dir, "slam_error.png");
+  h << image_if_present(dir, prefix + "map.png") << image_if_present(dir, prefix + "map_error.png")
+    << image_if_present(dir, prefix + "trajectory.png")
+    << image_if_present(dir, prefix + "error.png");
   return h.str();
 }
 
@@ -262,8 +272,16 @@ std::string run_report_html(const fs::path& dir, const json& m) {
     << "</p>\n"
     << verdict_section(m) << run_section(m) << events_section(m)
     << image_if_present(dir, "run.png");
-  if (m.contains("slam") && m["slam"].is_object())
-    for (const auto& [name, figures] : m["slam"].items()) h << slam_section(dir, name, figures);
+  if (m.contains("slam") && m["slam"].is_object()) {
+    // the driving back-end first, then the shadows, then every back-end's map error on one plot
+    std::string driving = text(m, "slam_driving");
+    if (!m["slam"].contains(driving) && !m["slam"].empty()) driving = m["slam"].begin().key();
+    if (m["slam"].contains(driving)) h << slam_section(dir, driving, m["slam"][driving], true);
+    for (const auto& [name, figures] : m["slam"].items())
+      if (name != driving) h << slam_section(dir, name, figures, false);
+    if (m["slam"].size() > 1)
+      h << image_if_present(dir, "slam_lanes_map.png") << image_if_present(dir, "slam_lanes.png");
+  }
   h << perception_section(dir, m.value("perception", json::object())) << "</body></html>\n";
   return h.str();
 }

@@ -15,6 +15,7 @@
 
 #include "core/error.hpp"
 #include "sensors/lidar_config.hpp"
+#include "slam/factory.hpp"
 #include "vehicle_models/mjcf_builder.hpp"
 
 namespace conesim::sim {
@@ -333,6 +334,12 @@ void apply_override(YAML::Node& root, const std::string& assignment, const std::
     keys.push_back(k);
   }
   if (path.back() == '.') throw InputError(option, 0, path + ": empty key in the path");
+  // `slam: graph` is short for `slam: {drive: graph}`: a key set under it extends that form
+  if (keys.size() > 1 && keys[0] == "slam" && root["slam"].IsScalar()) {
+    YAML::Node section(YAML::NodeType::Map);
+    section["drive"] = YAML::Clone(root["slam"]);
+    root["slam"] = section;
+  }
   std::vector<YAML::Node> chain{root};
   for (size_t i = 0; i + 1 < keys.size(); ++i) {
     YAML::Node next = chain.back()[keys[i]];
@@ -363,6 +370,125 @@ fs::path resolve(const fs::path& scenario_file, const std::string& name) {
   return p;
 }
 
+// a back-end name of the slam: block
+std::string read_backend(const YAML::Node& n, const Where& w, const std::string& key,
+                         bool none_allowed) {
+  const std::string name = read_string(n, w, key);
+  if ((none_allowed && name == "none") || slam::is_backend(name)) return name;
+  w.fail(n, key,
+         std::string("expected ") + (none_allowed ? "none or " : "") + "a SLAM back-end (" +
+             slam::backend_list() + "), got '" + name + "'");
+}
+
+slam::AssociationMethod read_association(const YAML::Node& n, const Where& w,
+                                         const std::string& key) {
+  const std::string name = read_string(n, w, key);
+  if (const auto m = slam::association_from_string(name)) return *m;
+  w.fail(n, key,
+         "expected an association method (" + slam::association_names() + "), got '" + name + "'");
+}
+
+// slam: NAME, or slam: {drive: NAME, shadow: [NAME, NAME:METHOD, ...], association: METHOD or
+// {NAME: METHOD, ...}, graph: {...}, ekf: {...}}
+void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario& s) {
+  if (n.IsScalar()) {
+    s.slam = read_backend(n, top, "slam", true);
+    return;
+  }
+  const Where w{&context, "slam"};
+  auto& ekf = s.slam_settings.ekf;
+  auto& graph = s.slam_settings.graph;
+  read_section(
+      n, w,
+      {{"drive", [&](const YAML::Node& v) { s.slam = read_backend(v, w, "drive", true); }},
+       {"shadow",
+        [&](const YAML::Node& v) {
+          s.slam_shadows.clear();
+          // one name or a list of them (a YAML node assigned to is changed in place, so the
+          // items are gathered rather than the node rebuilt)
+          std::vector<YAML::Node> items;
+          if (v.IsScalar()) items.push_back(v);
+          if (v.IsSequence())
+            for (const YAML::Node& item : v) items.push_back(item);
+          if (!v.IsScalar() && !v.IsSequence())
+            w.fail(v, "shadow", "expected a list of back-ends, e.g. [ekf], got " + describe(v));
+          for (const YAML::Node& item : items) {
+            const std::string entry = read_string(item, w, "shadow");
+            // NAME or NAME:METHOD (the back-end with that association)
+            const size_t colon = entry.find(':');
+            SlamShadow shadow;
+            shadow.backend = entry.substr(0, colon);
+            if (!slam::is_backend(shadow.backend))
+              w.fail(item, "shadow",
+                     "expected back-ends (" + slam::backend_list() +
+                         ", each optionally :METHOD), got '" + entry + "'");
+            if (colon != std::string::npos) {
+              const auto m = slam::association_from_string(entry.substr(colon + 1));
+              if (!m)
+                w.fail(item, "shadow",
+                       "expected NAME:METHOD with a method of " + slam::association_names() +
+                           ", got '" + entry + "'");
+              shadow.association = *m;
+            }
+            s.slam_shadows.push_back(shadow);
+          }
+        }},
+       {"association",
+        [&](const YAML::Node& v) {
+          if (v.IsScalar()) {
+            const slam::AssociationMethod m = read_association(v, w, "association");
+            s.slam_association = {{"graph", m}, {"ekf", m}};
+            return;
+          }
+          const Where a{&context, "slam.association"};
+          std::vector<Field> per_backend;
+          for (const std::string& name : slam::backend_names())
+            per_backend.push_back({name, [&, name](const YAML::Node& x) {
+                                     s.slam_association[name] = read_association(x, a, name);
+                                   }});
+          read_section(v, a, per_backend);
+        }},
+       {"ekf",
+        [&](const YAML::Node& v) {
+          const Where e{&context, "slam.ekf"};
+          read_section(v, e,
+                       {integer("confirm_sightings", ekf.confirm_sightings, e),
+                        number("preliminary_max_travel_m", ekf.preliminary_max_travel_m, e),
+                        number("preliminary_radius_m", ekf.preliminary_radius_m, e),
+                        number("new_landmark_min_distance_m", ekf.new_landmark_min_distance_m, e),
+               number("new_landmark_chi2", ekf.new_landmark_chi2, e),
+                        number("unseen_exclusion_m", ekf.unseen_exclusion_m, e),
+                        number("loop_min_travel_m", ekf.loop_min_travel_m, e),
+                        number("start_radius_m", ekf.start_radius_m, e),
+                        number("closure_delay_m", ekf.closure_delay_m, e),
+                        integer("closure_min_pairs", ekf.closure_min_pairs, e),
+                        number("closure_max_heading_rad", ekf.closure_max_heading_rad, e),
+                        {"localise_after_loop_closure",
+                         [&](const YAML::Node& x) {
+                           ekf.localise_after_loop_closure =
+                               read_bool(x, e, "localise_after_loop_closure");
+                         }},
+                        number("odometry_noise_scale", ekf.odometry_noise_scale, e),
+                        number("yaw_noise_per_m", ekf.yaw_noise_per_m, e),
+                        number("gate_chi2", ekf.association.gate_chi2, e),
+                        number("joint_probability", ekf.association.joint_probability, e),
+                        number("nn_radius_m", ekf.association.nn_radius_m, e),
+               number("track_gate_chi2", ekf.association.track_gate_chi2, e)});
+        }},
+       {"graph", [&](const YAML::Node& v) {
+          const Where g{&context, "slam.graph"};
+          read_section(v, g,
+                       {integer("confirm_sightings", graph.confirm_sightings, g),
+                        integer("window_poses", graph.window_poses, g),
+                        number("icr_sigma_m", graph.icr_sigma_m, g),
+                        number("gate_chi2", graph.association.gate_chi2, g),
+               number("track_gate_chi2", graph.association.track_gate_chi2, g),
+                        {"localise_after_loop_closure", [&](const YAML::Node& x) {
+                           graph.localise_after_loop_closure =
+                               read_bool(x, g, "localise_after_loop_closure");
+                         }}});
+        }}});
+}
 }  // namespace
 
 fs::path shipped_scenarios_dir() {
@@ -529,15 +655,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                     "fused, got '" +
                         s.perception + "'");
        }},
-      {"slam",
-       [&](const YAML::Node& n) {
-         s.slam = read_string(n, top, "slam");
-         if (s.slam != "none" && s.slam != "graph")
-           top.fail(n, "slam",
-                    "expected none or graph (ekf, fastslam1 and fastslam2 are not "
-                    "built yet), got '" +
-                        s.slam + "'");
-       }},
+      {"slam", [&](const YAML::Node& n) { read_slam(n, top, context, s); }},
       {"driver",
        [&](const YAML::Node& n) {
          const Where w{&context, "driver"};
@@ -561,23 +679,26 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                [&](const YAML::Node& v) {
                  const Where c{&context, "sensors.cone_sensor"};
                  auto& cs = ss.cone_sensor;
-                 read_section(v, c,
-                              {number("rate_hz", cs.timing.rate_hz, c),
-                               number("latency_s", cs.timing.latency_s, c),
-                               number("mount_x_m", cs.mount_x_m, c),
-                               number("min_range_m", cs.min_range_m, c),
-                               number("max_range_m", cs.max_range_m, c),
-                               number("fov_deg", cs.fov_deg, c),
-                               number("range_sigma_m", cs.range_sigma_m, c),
-                               number("bearing_sigma_rad", cs.bearing_sigma_rad, c),
-                               number("colour_range_m", cs.colour_range_m, c),
-                               number("colour_probability", cs.colour_probability, c),
-                               number("colour_confusion_probability",
-                                      cs.colour_confusion_probability, c),
-                               number("detection_probability_near", cs.detection_probability_near, c),
-                               number("detection_probability_far", cs.detection_probability_far, c),
-                               number("detection_falloff_start_m", cs.detection_falloff_start_m, c),
-                               number("false_positives_per_frame", cs.false_positives_per_frame, c)});
+                 read_section(
+                     v, c,
+                     {number("rate_hz", cs.timing.rate_hz, c),
+                      number("latency_s", cs.timing.latency_s, c),
+                      number("mount_x_m", cs.mount_x_m, c),
+                      number("min_range_m", cs.min_range_m, c),
+                      number("max_range_m", cs.max_range_m, c),
+                      number("fov_deg", cs.fov_deg, c),
+                      number("range_sigma_m", cs.range_sigma_m, c),
+                      number("bearing_sigma_rad", cs.bearing_sigma_rad, c),
+                      number("colour_range_m", cs.colour_range_m, c),
+                      number("colour_probability", cs.colour_probability, c),
+                      number("colour_confusion_probability", cs.colour_confusion_probability, c),
+                      number("detection_probability_near", cs.detection_probability_near, c),
+                      number("detection_probability_far", cs.detection_probability_far, c),
+                      number("detection_falloff_start_m", cs.detection_falloff_start_m, c),
+                      number("false_positives_per_frame", cs.false_positives_per_frame, c),
+                      {"track", [&](const YAML::Node& x) {
+                         ss.cone_sensor_track = read_bool(x, c, "track");
+                       }}});
                }},
               {"lidar",
                [&](const YAML::Node& v) {
@@ -698,7 +819,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
     if (slam_criteria && s.slam == "none")
       context.fail("pass",
                    "SLAM criteria (max_map_rmse_m, max_ate_rmse_m, min_da_correct_fraction, "
-                   "max_false_loop_closures, max_map_missed_fraction) need slam: graph");
+                   "max_false_loop_closures, max_map_missed_fraction) need slam: graph or ekf");
   }
   if (!(s.start_delay_s >= 0.0 && s.start_delay_s <= 60.0))
     context.fail("start_delay_s", "expected a delay from 0 to 60 s");
@@ -713,6 +834,24 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   }
   if (!(s.slam_latency_s >= 0.0 && s.slam_latency_s <= 1.0))
     context.fail("slam_latency_s", "expected a latency from 0 to 1 s");
+  if (s.slam == "none" && !s.slam_shadows.empty())
+    context.fail("slam.shadow", "shadow back-ends run beside a driving one: set slam.drive to " +
+                                    slam::backend_list());
+  if (const auto it = s.slam_association.find(s.slam);
+      it != s.slam_association.end() && it->second == slam::AssociationMethod::kIdeal)
+    context.fail("slam.association",
+                 "ideal reads the ground-truth labels: it is for shadow back-ends only (e.g. "
+                 "shadow: [" +
+                     s.slam + ":ideal]), never for the one that drives");
+  // (the association's parameters sit beside the others under slam.ekf)
+  if (std::string e = s.slam_settings.ekf.validate(); !e.empty())
+    context.fail_check("slam.ekf", e.starts_with("association.") ? e.substr(12) : e);
+  if (std::string e = s.slam_settings.graph.validate(); !e.empty())
+    context.fail_check("slam.graph", e.starts_with("graph_slam.") ? e.substr(11) : e);
+  if (!(s.slam_settings.graph.association.gate_chi2 > 0.0))
+    context.fail("slam.graph.gate_chi2", "expected a chi-square gate > 0");
+  if (!(s.slam_settings.graph.association.track_gate_chi2 > 0.0))
+    context.fail("slam.graph.track_gate_chi2", "expected a chi-square gate > 0");
   if (s.slam != "none" && s.perception == "ground_truth")
     context.fail("slam",
                  "SLAM needs observations with noise: set perception to "

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -13,6 +14,7 @@
 #include "sensors/cone_sensor.hpp"
 #include "sensors/stereo_camera.hpp"
 #include "sim/referee.hpp"
+#include "slam/factory.hpp"
 #include "tracks/generator.hpp"
 #include "vehicle_models/vehicle_params.hpp"
 
@@ -38,6 +40,9 @@ struct SensorSettings {
   double cone_fov_deg = 200.0;
   /// The detection-level cone sensor (`perception: cone_sensor`).
   sensors::ConeSensorConfig cone_sensor;
+  /// Run the perception's tracker on the cone sensor's frames (`sensors.cone_sensor.track`):
+  /// observations get track ids (for tracking-aided association) and the tracks' colour votes.
+  bool cone_sensor_track = false;
   /// The LiDAR sweeps while the car drives when enabled (or dumped).
   bool lidar_enabled = false;
   /// A preset of sensors::lidar_preset (vlp16, vlp32c, os1-64) and a mount preset.
@@ -74,6 +79,24 @@ struct PassCriteria {
   std::optional<double> max_map_missed_fraction;
 };
 
+/// A shadow back-end: its name and, when given (`ekf:jcbb`), its association method.
+struct SlamShadow {
+  std::string backend;
+  std::optional<slam::AssociationMethod> association;
+  /// The lane's name in outputs: the back-end's, with "-METHOD" when a method is given.
+  std::string lane_name() const {
+    return association ? backend + "-" + std::string(slam::to_string(*association)) : backend;
+  }
+};
+
+/// The back-ends' parameters as conesim runs them: GraphSLAM's no-lateral-motion constraint
+/// allows the MuJoCo car's rear-axle slip (slip angles up to about 1 degree).
+inline slam::BackendSettings default_slam_settings() {
+  slam::BackendSettings settings;
+  settings.graph.icr_sigma_m = 0.3;
+  return settings;
+}
+
 /// One scenario, fully resolved.
 struct Scenario {
   std::string name;
@@ -86,8 +109,15 @@ struct Scenario {
   /// ground_truth, cone_sensor (detection-level mock), or raw-data perception: lidar, stereo,
   /// fused (LiDAR cones coloured by the camera).
   std::string perception = "ground_truth";
-  /// none (later: graph, ekf, fastslam1, fastslam2).
+  /// The back-end that drives the car: none, graph, ekf (`slam: NAME` or `slam.drive`).
   std::string slam = "none";
+  /// Back-ends run beside it on the same input, scored only (`slam.shadow`).
+  std::vector<SlamShadow> slam_shadows;
+  /// The association method per back-end name (`slam.association`); a back-end not named
+  /// keeps its own default.
+  std::map<std::string, slam::AssociationMethod> slam_association;
+  /// Every back-end's parameters (`slam.graph`, `slam.ekf`).
+  slam::BackendSettings slam_settings = default_slam_settings();
   /// How long a SLAM update takes on the sim clock, seconds: its estimate reaches the driver at
   /// the first driver tick this long after the frame's delivery, and meanwhile the driver has
   /// the previous estimate carried forward by the odometry. 0: at once (the update takes no

@@ -147,6 +147,9 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
     cone_sensor_ = std::make_unique<sensors::ConeSensor>(
         s.sensors.cone_sensor, core::derive_seed(s.seed, kConeSensorStream));
     cone_period_us_ = s.sensors.cone_sensor.timing.period_us();
+    if (s.sensors.cone_sensor_track)
+      cone_tracker_ =
+          std::make_unique<slam::frontend::ConeTracker>(slam::frontend::TrackerConfig{});
     cone_latency_us_ = s.sensors.cone_sensor.timing.latency_us();
   }
 
@@ -478,6 +481,15 @@ std::optional<DeliveredDetections> SensorRig::take_detections(TimeUs t) {
   if (cone_queue_.empty() || cone_queue_.front().first > t) return std::nullopt;
   DeliveredDetections d = std::move(cone_queue_.front().second);
   cone_queue_.pop_front();
+  if (cone_tracker_) {
+    // track ids across frames, predicted with the autonomy's motion since the last frame
+    const double dt_s =
+        tracker_stamp_ ? core::to_seconds(d.observations.stamp - *tracker_stamp_) : 0.0;
+    tracker_stamp_ = d.observations.stamp;
+    const TimeUs stamp = d.observations.stamp;
+    d.observations = cone_tracker_->update(d.observations, motion_over(motion_, dt_s));
+    d.observations.stamp = stamp;
+  }
   return d;
 }
 

@@ -63,6 +63,7 @@ class SensorRig {
   /// with it; ignored otherwise).
   void set_motion(const slam::frontend::SweepMotion& motion) {
     if (perception_) perception_->set_motion(motion);
+    motion_ = motion;
   }
 
   /// The raw-data perception (`perception: lidar | stereo | fused`), null otherwise.
@@ -101,6 +102,11 @@ class SensorRig {
   std::unique_ptr<PerceptionRunner> perception_;
 
   std::unique_ptr<sensors::ConeSensor> cone_sensor_;
+  // the tracker on cone-sensor frames (`sensors.cone_sensor.track`), null when off, with the
+  // motion it predicts by and the stamp of its last frame
+  std::unique_ptr<slam::frontend::ConeTracker> cone_tracker_;
+  slam::frontend::SweepMotion motion_;
+  std::optional<core::TimeUs> tracker_stamp_;
   core::TimeUs cone_period_us_ = 0;
   core::TimeUs cone_latency_us_ = 0;
   std::deque<std::pair<core::TimeUs, DeliveredDetections>> cone_queue_;

@@ -1,18 +1,14 @@
 #include "sim/slam_runner.hpp"
 
 #include <algorithm>
-#include <array>
 #include <chrono>
 #include <cmath>
-#include <fstream>
 #include <limits>
-#include <numbers>
 #include <stdexcept>
 
 #include "core/time.hpp"
-#include "sim/evaluation.hpp"
-#include "sim/gnuplot.hpp"
-#include "sim/perception_runner.hpp"
+#include "sim/slam_figures.hpp"
+#include "slam/factory.hpp"
 
 namespace conesim::sim {
 
@@ -20,64 +16,37 @@ using core::TimeUs;
 
 namespace {
 
-constexpr uint64_t kImuStream = 201;
-constexpr uint64_t kWheelStream = 202;
-constexpr uint64_t kSteeringStream = 203;
-// a map cone farther than this from every true cone is spurious (ARCHITECTURE: 1 m cut-off)
-constexpr double kMatchCutoffM = 1.0;
-// a loop closure is true when the car is this close to where it was much earlier
-constexpr double kLoopTruthRadiusM = 15.0;
-constexpr double kLoopTruthMinTravelM = 60.0;
 // how often the true cones in the perception's view are noted, sim microseconds
 constexpr TimeUs kInViewEveryUs = 50'000;
 
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v[static_cast<size_t>(q * (v.size() - 1) + 0.5)];
-}
-
-nlohmann::json pose_json(const core::Pose2& p) {
-  return nlohmann::json{{"x_m", p.x}, {"y_m", p.y}, {"yaw_rad", p.yaw}};
-}
-
-// the root mean square, NaN (null in the JSON) when there is nothing to average
-double rms(const std::vector<double>& squares) {
-  if (squares.empty()) return NAN;
-  double sum = 0.0;
-  for (double s : squares) sum += s;
-  return std::sqrt(sum / squares.size());
-}
-
-// the classes scored one by one, in the order of the per-class figures
-constexpr std::array<core::ConeClass, 4> kScoredClasses = {
-    core::ConeClass::kBlue, core::ConeClass::kYellow, core::ConeClass::kOrangeSmall,
-    core::ConeClass::kOrangeBig};
-
-// position of a class in kScoredClasses, -1 for unknown
-int class_slot(core::ConeClass c) {
-  for (size_t k = 0; k < kScoredClasses.size(); ++k)
-    if (kScoredClasses[k] == c) return static_cast<int>(k);
-  return -1;
-}
-
-// a JSON number, or null where nothing was measured
-nlohmann::json number_or_null(double v) {
-  return std::isnan(v) ? nlohmann::json() : nlohmann::json(v);
-}
-
-slam::GraphSlamConfig graph_config(const Scenario& s) {
-  slam::GraphSlamConfig c;
+// a back-end's settings as the scenario and its perception make them
+slam::BackendSettings lane_settings(const Scenario& s, const std::string& backend,
+                                    std::optional<slam::AssociationMethod> method) {
+  slam::BackendSettings settings = s.slam_settings;
   // where the perception sees cones: a landmark there that goes unseen counts against it
   const PerceptionView view = perception_view(s);
-  c.sensor_x_m = view.sensor_x_m;
-  c.min_range_m = view.min_range_m;
-  c.max_range_m = view.max_range_m;
-  c.fov_deg = view.fov_deg;
-  // the MuJoCo car's rear axle slides sideways in turns (slip angles up to about 1 degree):
-  // the no-lateral-motion constraint must allow that
-  c.icr_sigma_m = 0.3;
-  return c;
+  settings.graph.sensor_x_m = view.sensor_x_m;
+  settings.graph.min_range_m = view.min_range_m;
+  settings.graph.max_range_m = view.max_range_m;
+  settings.graph.fov_deg = view.fov_deg;
+  settings.ekf.sensor_x_m = view.sensor_x_m;
+  if (!method)
+    if (const auto it = s.slam_association.find(backend); it != s.slam_association.end())
+      method = it->second;
+  if (method) {
+    settings.ekf.association.method = *method;
+    // GraphSLAM's built-in association is ML with individual compatibility and the drift
+    // consensus on returning, tracking-aided by default; the other methods replace it
+    using M = slam::AssociationMethod;
+    settings.graph.association.use_track_ids = *method == M::kTrackingAided;
+    if (*method != M::kTrackingAided && *method != M::kMaximumLikelihood) {
+      slam::AssociationParams params = settings.ekf.association;
+      params.method = *method;
+      params.gate_chi2 = settings.graph.association.gate_chi2;
+      settings.graph.method = params;
+    }
+  }
+  return settings;
 }
 
 slam::OdometryConfig odometry_config(const Scenario& s) {
@@ -85,261 +54,202 @@ slam::OdometryConfig odometry_config(const Scenario& s) {
   c.wheel_radius_m = s.vehicle.wheel_radius_m;
   c.wheelbase_m = s.vehicle.wheelbase_m;
   // the gyro's yaw rate: on the MuJoCo car the anti-Ackermann front tyres fight, and the
-  // bicycle model overstates the yaw rate by up to 18 % at large angles (VEHICLE_NOTES.md)
+  // bicycle model overstates the yaw rate by up to 18 % at large angles (docs/vehicle.md)
   c.model = slam::MotionModel::kUnicycle;
   return c;
 }
 
 }  // namespace
 
-SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const VehicleSim& car)
-    : track_(track),
-      odometry_(odometry_config(s)),
-      imu_(sensors::ImuConfig{}, core::derive_seed(s.seed, kImuStream)),
-      wheels_(sensors::WheelEncoderConfig{}, core::derive_seed(s.seed, kWheelStream)),
-      steering_(sensors::SteeringSensorConfig{}, core::derive_seed(s.seed, kSteeringStream)) {
-  if (s.slam != "graph") throw std::invalid_argument("slam: only graph runs in the loop so far");
-  backend_ = std::make_unique<slam::GraphSlam>(graph_config(s));
-  const core::Pose2 start = car.truth().pose;
-  backend_->reset(start, 0);
-  odometry_.reset(0);
-  if (s.event == core::EventType::kSkidpad) {
-    // skidpad localises against its known layout
-    std::vector<core::MapCone> prior;
-    for (const auto& c : track.cones)
-      prior.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-4});
-    backend_->set_prior_map(prior);
-    // its landmarks (ids in the order given) are those cones: no vote of the run outweighs that
-    for (size_t k = 0; k < track.cones.size(); ++k)
-      landmark_votes_[static_cast<int>(k)][track.cones[k].id] = std::numeric_limits<int>::max() / 2;
+// what an update leaves for the harness: the estimate after it and what it did
+struct SlamRunner::UpdateResult {
+  core::Estimate estimate;
+  std::vector<slam::Association> associations;
+  int loop_closures = 0;
+  double wall_ms = 0.0;
+  double cpu_ms = 0.0;
+  double association_us = -1.0;
+};
+
+// one back-end with its scorer and the updates in flight
+struct SlamRunner::Lane {
+  // an update running on the lane's thread (or done), and when its estimate takes effect
+  struct Pending {
+    TimeUs due_us;
+    DeliveredDetections frame;
+    core::Pose2 odometry_delta;
+    std::future<UpdateResult> result;
+  };
+
+  Lane(std::string lane_name, bool drives, std::unique_ptr<slam::Backend> b,
+       const tracks::Track& track, const PerceptionView& view)
+      : name(std::move(lane_name)), driving(drives), backend(std::move(b)), scorer(track, view) {}
+
+  // one update, timed in wall and in the thread's CPU time
+  UpdateResult run(const slam::SlamInput& input) {
+    using clock = std::chrono::steady_clock;
+    UpdateResult r;
+    const auto start = clock::now();
+    const double cpu_start = core::thread_cpu_ms();
+    backend->process(input);
+    r.cpu_ms = core::thread_cpu_ms() - cpu_start;
+    r.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - start).count();
+    r.estimate = backend->estimate();
+    r.associations = backend->last_associations();
+    r.loop_closures = backend->loop_closures();
+    r.association_us = backend->last_association_us();
+    return r;
   }
-  last_estimate_ = backend_->estimate();
-  last_frame_pose_ = start;
+
+  std::string name;
+  bool driving;
+  // the association method's name, and whether it reads the labels (ideal)
+  std::string association;
+  bool ideal = false;
+  std::unique_ptr<slam::Backend> backend;
+  SlamScorer scorer;
+  std::deque<Pending> pending;
+  core::Estimate last_estimate;
+  // last member: its jobs use the backend, so it stops before the members above go
+  std::unique_ptr<WorkerThread> thread;
+};
+
+SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const VehicleSim& car)
+    : track_(track), feed_(s.seed), odometry_(odometry_config(s)) {
+  if (s.slam == "none") throw std::invalid_argument("slam: no driving back-end");
+  start_pose_ = car.truth().pose;
   latency_us_ = core::from_seconds(s.slam_latency_s);
-  if (latency_us_ > 0) slam_thread_ = std::make_unique<WorkerThread>();
-  view_ = perception_view(s);
-  cone_observed_.assign(static_cast<size_t>(track.next_id()), 0);
-  cone_in_view_.assign(static_cast<size_t>(track.next_id()), 0);
-  cone_index_.assign(static_cast<size_t>(track.next_id()), -1);
-  for (size_t k = 0; k < track.cones.size(); ++k)
-    cone_index_[track.cones[k].id] = static_cast<int>(k);
-  next_map_snapshot_m_ = kMapSnapshotEveryM;
+  const PerceptionView view = perception_view(s);
+
+  // the driving lane, then the shadows in the order given
+  struct Spec {
+    std::string lane, backend;
+    std::optional<slam::AssociationMethod> method;
+  };
+  std::vector<Spec> specs = {{s.slam, s.slam, std::nullopt}};
+  for (const SlamShadow& shadow : s.slam_shadows)
+    specs.push_back({shadow.lane_name(), shadow.backend, shadow.association});
+  for (size_t k = 0; k < specs.size(); ++k) {
+    // a lane name given twice runs once
+    if (std::any_of(lanes_.begin(), lanes_.end(),
+                    [&](const auto& l) { return l->name == specs[k].lane; }))
+      continue;
+    auto backend =
+        slam::make_backend(specs[k].backend, lane_settings(s, specs[k].backend, specs[k].method));
+    auto lane = std::make_unique<Lane>(specs[k].lane, k == 0, std::move(backend), track, view);
+    // the association it runs: its own, the scenario's for the back-end, or the default
+    std::optional<slam::AssociationMethod> method = specs[k].method;
+    if (!method)
+      if (const auto it = s.slam_association.find(specs[k].backend); it != s.slam_association.end())
+        method = it->second;
+    lane->association = method                        ? std::string(slam::to_string(*method))
+                        : specs[k].backend == "graph" ? "tracking"
+                                                      : "ml";
+    lane->ideal = method == slam::AssociationMethod::kIdeal;
+    lane->backend->reset(start_pose_, 0);
+    if (s.event == core::EventType::kSkidpad) {
+      // skidpad localises against its known layout
+      std::vector<core::MapCone> prior;
+      for (const auto& c : track.cones)
+        prior.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-4});
+      lane->backend->set_prior_map(prior);
+      lane->scorer.set_prior_map_identities();
+    }
+    lane->last_estimate = lane->backend->estimate();
+    if (!lane->driving || latency_us_ > 0) lane->thread = std::make_unique<WorkerThread>();
+    lanes_.push_back(std::move(lane));
+  }
+  odometry_.reset(0);
+  frame_odometry_.push_back({0, start_pose_});
+  last_estimate_ = lanes_.front()->last_estimate;
+  last_frame_pose_ = start_pose_;
 }
+
+SlamRunner::~SlamRunner() = default;
 
 void SlamRunner::step(TimeUs t, const VehicleSim& car) {
-  now_ = t;
   // the true cones the perception could see from the true pose, every kInViewEveryUs
-  if (t % kInViewEveryUs == 0) note_cones_in_view(car.truth().pose);
-  // sample what is due; samples arrive after their latency
-  const bool imu_due = t % imu_.config().timing.period_us() == 0;
-  const bool wheels_due = t % wheels_.config().timing.period_us() == 0;
-  const bool steer_due = t % steering_.config().timing.period_us() == 0;
-  if (imu_due || wheels_due || steer_due) {
-    const VehicleTruth truth = car.truth();
-    sensors::VehicleSensorTruth st;
-    st.stamp = t;
-    st.angular_rate_rps = car.imu_angular_rate();
-    st.specific_force_mps2 = car.imu_specific_force();
-    st.wheel_angle_rad = truth.wheel_spin_rad;
-    st.steer_rad = truth.steer_rad;
-    if (imu_due) {
-      VehicleSample v{t, 0, imu_.sample(st), {}, {}};
-      in_flight_.push_back({t + imu_.config().timing.latency_us(), v});
-    }
-    if (wheels_due) {
-      VehicleSample v{t, 1, {}, wheels_.sample(st), {}};
-      in_flight_.push_back({t + wheels_.config().timing.latency_us(), v});
-    }
-    if (steer_due) {
-      VehicleSample v{t, 2, {}, {}, steering_.sample(st)};
-      in_flight_.push_back({t + steering_.config().timing.latency_us(), v});
-    }
-  }
-  // deliver what has arrived; sensors with different latencies arrive out of stamp order, so
-  // each sample goes in after the queued ones stamped no later (the queue stays in stamp order,
-  // equal stamps in arrival order)
-  while (!in_flight_.empty()) {
-    auto it = std::min_element(in_flight_.begin(), in_flight_.end(),
-                               [](const auto& a, const auto& b) { return a.first < b.first; });
-    if (it->first > t) break;
-    auto at = delivered_.end();
-    while (at != delivered_.begin() && std::prev(at)->stamp > it->second.stamp) --at;
-    delivered_.insert(at, it->second);
-    in_flight_.erase(it);
-  }
-}
-
-void SlamRunner::note_cones_in_view(const core::Pose2& pose) {
-  // within [min_range_m, max_range_m] of the sensor and within half the field of view of the
-  // sensor's heading, the sensor sensor_x_m ahead of the rear axle
-  const double half_fov_rad = 0.5 * view_.fov_deg * std::numbers::pi / 180.0;
-  for (const tracks::Cone& c : track_.cones) {
-    const core::Vec2 local = pose.inverse_transform(c.position) - core::Vec2(view_.sensor_x_m, 0.0);
-    const double range_m = local.norm();
-    if (range_m < view_.min_range_m || range_m > view_.max_range_m) continue;
-    if (std::abs(std::atan2(local.y(), local.x())) > half_fov_rad) continue;
-    cone_in_view_[c.id] = 1;
-  }
-}
-
-void SlamRunner::feed_until(slam::Odometry& odometry, TimeUs stamp,
-                            std::deque<VehicleSample>* queue) const {
-  while (!queue->empty() && queue->front().stamp <= stamp) {
-    const VehicleSample& v = queue->front();
-    if (v.kind == 0) odometry.add_imu(v.imu);
-    if (v.kind == 1) odometry.add_wheel_speeds(v.wheels);
-    if (v.kind == 2) odometry.add_steering(v.steering);
-    queue->pop_front();
-  }
+  if (t % kInViewEveryUs == 0)
+    for (auto& lane : lanes_) lane->scorer.note_cones_in_view(car.truth().pose);
+  feed_.step(t, car);
 }
 
 void SlamRunner::process(const DeliveredDetections& frame, TimeUs now) {
-  // the backend's input: the odometry up to the frame's stamp and its cones
+  // the back-ends' input: the odometry up to the frame's stamp and its cones, the same for all
   const TimeUs stamp = frame.observations.stamp;
-  feed_until(odometry_, stamp, &delivered_);
-  slam::SlamInput input{odometry_.take_delta(stamp), frame.observations};
-  if (!slam_thread_) {
-    take_in(frame, run_update(input));
-    return;
+  feed_.feed(odometry_, stamp);
+  const slam::SlamInput input{odometry_.take_delta(stamp), frame.observations, {}};
+  frame_odometry_.push_back({stamp, frame_odometry_.back().second.compose(input.odometry.delta)});
+  for (auto& lane_ptr : lanes_) {
+    Lane& lane = *lane_ptr;
+    // the labels go only to a lane with the ideal association (an ablation)
+    slam::SlamInput lane_input = input;
+    if (lane.ideal) lane_input.true_ids = frame.labels.cone_id;
+    if (!lane.thread) {
+      take_in(lane, frame, lane.run(lane_input));
+      continue;
+    }
+    // on the lane's thread (one update at a time, in order)
+    std::future<UpdateResult> result =
+        lane.thread->post([&lane, lane_input] { return lane.run(lane_input); });
+    lane.pending.push_back({now + latency_us_, frame, input.odometry.delta, std::move(result)});
   }
-  // with a latency, the update runs on the SLAM thread (one at a time, in order)
-  const core::Pose2 delta = input.odometry.delta;
-  std::future<UpdateResult> result =
-      slam_thread_->post([this, input = std::move(input)] { return run_update(input); });
-  pending_.push_back({now + latency_us_, frame, delta, std::move(result)});
 }
 
 void SlamRunner::catch_up(TimeUs t) {
-  while (!pending_.empty() && pending_.front().due_us <= t) {
-    PendingUpdate& update = pending_.front();
-    take_in(update.frame, update.result.get());
-    pending_.pop_front();
+  for (auto& lane_ptr : lanes_) {
+    Lane& lane = *lane_ptr;
+    while (!lane.pending.empty()) {
+      Lane::Pending& update = lane.pending.front();
+      // the driving lane waits for its latency; a shadow's finished updates are scored as
+      // they come (in order, so the figures do not depend on when)
+      const bool ready = lane.driving ? update.due_us <= t
+                                      : update.result.wait_for(std::chrono::seconds(0)) ==
+                                            std::future_status::ready;
+      if (!ready) break;
+      take_in(lane, update.frame, update.result.get());
+      lane.pending.pop_front();
+    }
   }
 }
 
 void SlamRunner::finish() {
-  catch_up(std::numeric_limits<TimeUs>::max());
+  for (auto& lane_ptr : lanes_) {
+    Lane& lane = *lane_ptr;
+    for (; !lane.pending.empty(); lane.pending.pop_front())
+      take_in(lane, lane.pending.front().frame, lane.pending.front().result.get());
+  }
 }
 
-SlamRunner::UpdateResult SlamRunner::run_update(const slam::SlamInput& input) {
-  // the update, timed in wall and in the thread's CPU time
-  using clock = std::chrono::steady_clock;
-  UpdateResult r;
-  const auto start = clock::now();
-  const double cpu_start = core::thread_cpu_ms();
-  backend_->process(input);
-  r.cpu_ms = core::thread_cpu_ms() - cpu_start;
-  r.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - start).count();
-  r.estimate = backend_->estimate();
-  r.associations = backend_->last_associations();
-  r.loop_closures = backend_->loop_closures();
-  return r;
-}
-
-void SlamRunner::take_in(const DeliveredDetections& frame, const UpdateResult& update) {
-  const TimeUs stamp = frame.observations.stamp;
-  update_cpu_ms_.push_back(update.cpu_ms);
-  update_ms_.push_back(update.wall_ms);
+void SlamRunner::take_in(Lane& lane, const DeliveredDetections& frame, const UpdateResult& update) {
+  lane.last_estimate = update.estimate;
+  SlamScorer::Update u;
+  u.stamp = frame.observations.stamp;
+  u.true_pose = frame.capture_pose;
+  u.observations = &frame.observations;
+  u.true_ids = &frame.labels.cone_id;
+  u.estimate = &update.estimate;
+  u.associations = &update.associations;
+  u.loop_closures = update.loop_closures;
+  u.wall_ms = update.wall_ms;
+  u.cpu_ms = update.cpu_ms;
+  u.association_us = update.association_us;
+  lane.scorer.score(u);
+  if (!lane.driving) return;
   last_estimate_ = update.estimate;
   last_observations_ = frame.observations;
   last_frame_pose_ = last_estimate_.pose;
-
-  // trajectory error at the capture time, no alignment
-  const core::Pose2& truth = frame.capture_pose;
-  const core::Pose2& est = last_estimate_.pose;
-  position_error2_.push_back((est.position() - truth.position()).squaredNorm());
-  yaw_error2_.push_back(std::pow(core::normalize_angle(est.yaw - truth.yaw), 2));
-  const double travelled =
-      true_path_.empty()
-          ? 0.0
-          : true_odometer_.back() + (truth.position() - true_path_.back().position()).norm();
-  true_path_.push_back(truth);
-  estimated_path_.push_back(est);
-  true_odometer_.push_back(travelled);
-
-  // associations against the labels: a match is right when the landmark's majority cone is
-  // the observation's true cone
-  const auto& associations = update.associations;
-  for (size_t i = 0; i < associations.size() && i < frame.labels.cone_id.size(); ++i) {
-    const int true_id = frame.labels.cone_id[i];
-    if (true_id >= 0) cone_observed_[true_id] = 1;
-    const auto& a = associations[i];
-    if (a.kind == slam::Association::Kind::kRejected) continue;
-    auto& votes = landmark_votes_[a.landmark_id];
-    if (a.kind == slam::Association::Kind::kMatched) {
-      int majority = -3, best = 0;
-      for (const auto& [id, n] : votes)
-        if (n > best) best = n, majority = id;
-      if (majority == true_id && true_id >= 0) {
-        ++da_correct_;
-      } else {
-        ++da_wrong_;
-        wrong_association_places_.push_back(truth.transform(frame.observations.cones[i].position));
-      }
-    }
-    ++votes[true_id];
-  }
-
-  // a loop closure is false unless the car really is back near where it was long before
-  for (; loop_closures_ < update.loop_closures; ++loop_closures_) {
-    bool real = false;
-    for (size_t j = 0; j < true_path_.size(); ++j) {
-      if (travelled - true_odometer_[j] < kLoopTruthMinTravelM) break;
-      if ((true_path_[j].position() - truth.position()).norm() < kLoopTruthRadiusM) real = true;
-    }
-    if (!real) ++false_loop_closures_;
-    loop_closure_events_.push_back({{"t_s", core::to_seconds(stamp)},
-                                    {"travel_m", travelled},
-                                    {"true_pose", pose_json(truth)},
-                                    {"estimated_pose", pose_json(est)},
-                                    {"false", !real}});
-  }
-
-  // the map error every few metres driven
-  if (travelled >= next_map_snapshot_m_) {
-    snapshot_map_error(travelled, update.estimate);
-    while (next_map_snapshot_m_ <= travelled) next_map_snapshot_m_ += kMapSnapshotEveryM;
-  }
 }
 
-void SlamRunner::snapshot_map_error(double distance_m, const core::Estimate& e) {
-  // the map now against the true cones observed so far, no alignment
-  std::vector<core::Vec2> estimated, truth;
-  std::vector<int> truth_slot;
-  for (const core::MapCone& c : e.map) estimated.push_back(c.position);
-  for (const tracks::Cone& c : track_.cones) {
-    if (!cone_observed_[c.id]) continue;
-    truth.push_back(c.position);
-    truth_slot.push_back(class_slot(c.cls));
-  }
-  const std::vector<int> match = match_points(estimated, truth, kMatchCutoffM);
-
-  // rmse overall (slot 0) and by the true cone's class (slots 1..4)
-  std::array<double, 5> sum2{}, n{};
-  for (size_t i = 0; i < match.size(); ++i) {
-    if (match[i] < 0) continue;
-    const double err2 = (estimated[i] - truth[match[i]]).squaredNorm();
-    sum2[0] += err2, n[0] += 1;
-    if (const int k = truth_slot[match[i]]; k >= 0) sum2[k + 1] += err2, n[k + 1] += 1;
-  }
-  MapErrorSnapshot snapshot;
-  snapshot.distance_m = distance_m;
-  snapshot.matched = static_cast<int>(n[0]);
-  for (size_t k = 0; k < sum2.size(); ++k)
-    snapshot.rmse_m[k] = n[k] > 0 ? std::sqrt(sum2[k] / n[k]) : NAN;
-  map_error_over_distance_.push_back(snapshot);
-}
-
-core::Estimate SlamRunner::estimate_now(TimeUs t,
-                                        slam::frontend::SweepMotion* motion) const {
+core::Estimate SlamRunner::estimate_now(TimeUs t, slam::frontend::SweepMotion* motion) const {
   // carry the last estimate forward with the odometry delivered since its frame
   slam::Odometry forward = odometry_;
-  std::deque<VehicleSample> pending = delivered_;
-  feed_until(forward, t, &pending);
+  feed_.feed_copy(forward, t);
   const slam::OdometryDelta delta = forward.take_delta(t);
   // the updates still running: the estimate before them, moved on by their odometry
   core::Pose2 pose = last_estimate_.pose;
-  for (const PendingUpdate& update : pending_) pose = pose.compose(update.odometry_delta);
+  for (const Lane::Pending& update : lanes_.front()->pending)
+    pose = pose.compose(update.odometry_delta);
   core::Estimate e = last_estimate_;
   e.stamp = t;
   e.pose = pose.compose(delta.delta);
@@ -349,6 +259,12 @@ core::Estimate SlamRunner::estimate_now(TimeUs t,
   return e;
 }
 
+core::Pose2 SlamRunner::odometry_pose_now(TimeUs t) const {
+  slam::Odometry forward = odometry_;
+  feed_.feed_copy(forward, t);
+  return frame_odometry_.back().second.compose(forward.take_delta(t).delta);
+}
+
 core::ConeObservations SlamRunner::observations_at(const core::Pose2& now) const {
   core::ConeObservations obs = last_observations_;
   for (auto& o : obs.cones)
@@ -356,230 +272,64 @@ core::ConeObservations SlamRunner::observations_at(const core::Pose2& now) const
   return obs;
 }
 
-std::vector<SlamRunner::MapMatch> SlamRunner::match_map() const {
-  const core::Estimate e = backend_->estimate();
-  std::vector<core::Vec2> estimated, truth;
-  for (const core::MapCone& c : e.map) estimated.push_back(c.position);
-  for (const tracks::Cone& c : track_.cones) truth.push_back(c.position);
-  const std::vector<int> match = match_points(estimated, truth, kMatchCutoffM);
-  std::vector<MapMatch> matches;
-  for (size_t i = 0; i < e.map.size(); ++i) {
-    MapMatch m{e.map[i], -1, 0.0};
-    if (match[i] >= 0) {
-      m.true_cone_id = track_.cones[match[i]].id;
-      m.error_m = (estimated[i] - truth[match[i]]).norm();
-    }
-    matches.push_back(m);
-  }
-  return matches;
+nlohmann::json SlamRunner::metrics() const {
+  return lanes_.front()->scorer.metrics(lanes_.front()->last_estimate);
 }
 
-nlohmann::json SlamRunner::metrics() const {
-  // map: matched one to one to the true cones, no alignment
-  const std::vector<MapMatch> matches = match_map();
-  std::vector<double> err2;
-  std::vector<char> true_used(static_cast<size_t>(track_.next_id()), 0);
-  int class_wrong = 0;
-  for (const MapMatch& m : matches) {
-    if (m.true_cone_id < 0) continue;
-    err2.push_back(m.error_m * m.error_m);
-    true_used[m.true_cone_id] = 1;
-    if (m.estimate.cls != true_cone(m.true_cone_id).cls) ++class_wrong;
+nlohmann::json SlamRunner::all_metrics() const {
+  nlohmann::json out = nlohmann::json::object();
+  for (const auto& lane : lanes_) {
+    nlohmann::json m = lane->scorer.metrics(lane->last_estimate);
+    m["role"] = lane->driving ? "drive" : "shadow";
+    m["association"] = lane->association;
+    // an ablation that read the labels: never a figure a car could reach
+    m["ideal_association"] = lane->ideal;
+    out[lane->name] = std::move(m);
   }
-  // missed: a true cone that was in the perception's view at some moment of the run (see
-  // note_cones_in_view) and that no map landmark was matched to, whether or not the perception
-  // reported it; observed: reported by the perception at least once (its labels)
-  int observed = 0, in_view = 0, missed = 0;
-  for (const tracks::Cone& c : track_.cones) {
-    observed += cone_observed_[c.id];
-    if (!cone_in_view_[c.id]) continue;
-    ++in_view;
-    if (!true_used[c.id]) ++missed;
-  }
-  const core::Estimate e = backend_->estimate();
-  const int matched = static_cast<int>(err2.size());
+  return out;
+}
 
-  // per class: matched, missed and error by the true cone's class, spurious by the estimate's
-  struct ClassTally {
-    int matched = 0, missed = 0, spurious = 0;
-    std::vector<double> err2;
-  };
-  std::array<ClassTally, kScoredClasses.size()> tally;
-  for (const MapMatch& m : matches) {
-    if (m.true_cone_id < 0) {
-      if (const int k = class_slot(m.estimate.cls); k >= 0) ++tally[k].spurious;
-    } else if (const int k = class_slot(true_cone(m.true_cone_id).cls); k >= 0) {
-      ++tally[k].matched;
-      tally[k].err2.push_back(m.error_m * m.error_m);
-    }
-  }
-  for (const tracks::Cone& c : track_.cones)
-    if (cone_in_view_[c.id] && !true_used[c.id])
-      if (const int k = class_slot(c.cls); k >= 0) ++tally[k].missed;
-  nlohmann::json by_class = nlohmann::json::object();
-  for (size_t k = 0; k < kScoredClasses.size(); ++k)
-    by_class[std::string(core::to_string(kScoredClasses[k]))] = {
-        {"matched", tally[k].matched},
-        {"missed", tally[k].missed},
-        {"spurious", tally[k].spurious},
-        {"rmse_m", number_or_null(rms(tally[k].err2))}};
+std::vector<std::string> SlamRunner::lane_names() const {
+  std::vector<std::string> names;
+  for (const auto& lane : lanes_) names.push_back(lane->name);
+  return names;
+}
 
-  // the map aligned: the rigid transform that best lays the matched estimates on their true
-  // cones, then matched again
-  std::vector<core::Vec2> from, to;
-  for (const MapMatch& m : matches) {
-    if (m.true_cone_id < 0) continue;
-    from.push_back(m.estimate.position);
-    to.push_back(true_cone(m.true_cone_id).position);
-  }
-  const core::Pose2 map_alignment = align_se2(from, to);
-  std::vector<core::Vec2> aligned, truth;
-  for (const core::MapCone& c : e.map) aligned.push_back(map_alignment.transform(c.position));
-  for (const tracks::Cone& c : track_.cones) truth.push_back(c.position);
-  const std::vector<int> aligned_match = match_points(aligned, truth, kMatchCutoffM);
-  std::vector<double> aligned_err2;
-  for (size_t i = 0; i < aligned.size(); ++i)
-    if (aligned_match[i] >= 0)
-      aligned_err2.push_back((aligned[i] - truth[aligned_match[i]]).squaredNorm());
+std::string SlamRunner::name() const {
+  return lanes_.front()->name;
+}
 
-  // the trajectory aligned: the estimated path laid on the true one
-  std::vector<core::Vec2> est_positions, true_positions;
-  for (size_t i = 0; i < true_path_.size(); ++i) {
-    est_positions.push_back(estimated_path_[i].position());
-    true_positions.push_back(true_path_[i].position());
+const SlamScorer& SlamRunner::scorer() const {
+  return lanes_.front()->scorer;
+}
+
+std::vector<core::Pose2> SlamRunner::lane_poses(size_t lane_index, const std::vector<TimeUs>& t,
+                                                const std::vector<core::Pose2>& odometry) const {
+  // frame k of the lane's scorer is frame k + 1 of frame_odometry_ (entry 0 is the start)
+  const SlamScorer& scorer = lanes_[lane_index]->scorer;
+  const auto& stamps = scorer.stamps();
+  const auto& poses = scorer.estimated_path();
+  std::vector<core::Pose2> out;
+  size_t k = 0;  // updates stamped no later than the time
+  for (size_t i = 0; i < t.size(); ++i) {
+    while (k < stamps.size() && stamps[k] <= t[i]) ++k;
+    const core::Pose2 at_update = k == 0 ? start_pose_ : poses[k - 1];
+    const core::Pose2 odometry_then =
+        frame_odometry_[std::min(k, frame_odometry_.size() - 1)].second;
+    out.push_back(at_update.compose(odometry_then.inverse().compose(odometry[i])));
   }
-  const core::Pose2 path_alignment = align_se2(est_positions, true_positions);
-  std::vector<double> ate_aligned2, yaw_aligned2;
-  for (size_t i = 0; i < true_path_.size(); ++i) {
-    const core::Pose2 est = path_alignment.compose(estimated_path_[i]);
-    ate_aligned2.push_back((est.position() - true_path_[i].position()).squaredNorm());
-    yaw_aligned2.push_back(std::pow(core::normalize_angle(est.yaw - true_path_[i].yaw), 2));
-  }
-  const int total_da = da_correct_ + da_wrong_;
-  return {
-      {"map_rmse_m", number_or_null(rms(err2))},
-      {"map_matched", matched},
-      {"map_missed", missed},
-      {"map_spurious", static_cast<int>(e.map.size()) - matched},
-      {"map_cones_in_view", in_view},
-      {"map_missed_fraction",
-       in_view ? nlohmann::json(static_cast<double>(missed) / in_view) : nlohmann::json()},
-      {"map_cones_observed", observed},
-      {"map_class_wrong", class_wrong},
-      {"map_rmse_aligned_m", number_or_null(rms(aligned_err2))},
-      {"map_matched_aligned", aligned_err2.size()},
-      {"map_alignment", pose_json(map_alignment)},
-      {"by_class", by_class},
-      {"ate_rmse_m", number_or_null(rms(position_error2_))},
-      {"yaw_rmse_rad", number_or_null(rms(yaw_error2_))},
-      {"ate_rmse_aligned_m", number_or_null(rms(ate_aligned2))},
-      {"yaw_rmse_aligned_rad", number_or_null(rms(yaw_aligned2))},
-      {"trajectory_alignment", pose_json(path_alignment)},
-      {"da_correct", da_correct_},
-      {"da_wrong", da_wrong_},
-      {"da_correct_fraction",
-       total_da ? nlohmann::json(static_cast<double>(da_correct_) / total_da) : nlohmann::json()},
-      {"loop_closures", loop_closures_},
-      {"false_loop_closures", false_loop_closures_},
-      {"loop_closure_events", loop_closure_events_},
-      {"phase", e.phase == core::SlamPhase::kLocalisation ? "localisation" : "mapping"},
-      {"updates", update_ms_.size()},
-      {"update_ms_median", percentile(update_ms_, 0.5)},
-      {"update_ms_p99", percentile(update_ms_, 0.99)},
-      {"update_cpu_ms_median", percentile(update_cpu_ms_, 0.5)},
-      {"update_cpu_ms_p99", percentile(update_cpu_ms_, 0.99)},
-  };
+  return out;
 }
 
 void SlamRunner::write_report(const std::filesystem::path& dir) const {
-  // map.csv: every estimated cone with the true cone it stands for
-  const std::vector<MapMatch> matches = match_map();
-  {
-    std::ofstream csv(dir / "map.csv");
-    csv << "id,class,x_m,y_m,var_x_m2,cov_xy_m2,var_y_m2,true_cone_id,error_m\n";
-    for (const MapMatch& m : matches) {
-      const auto& c = m.estimate;
-      csv << c.id << "," << core::to_string(c.cls) << "," << c.position.x() << "," << c.position.y()
-          << "," << c.covariance(0, 0) << "," << c.covariance(0, 1) << "," << c.covariance(1, 1)
-          << "," << m.true_cone_id << "," << m.error_m << "\n";
-    }
+  std::vector<LaneFigures> figures;
+  for (const auto& lane : lanes_) {
+    write_slam_figures(lane->scorer, track_, lane->last_estimate, dir,
+                       lane->driving ? "slam_" : "slam_" + lane->name + "_",
+                       lane->driving ? "" : "slam_" + lane->name + "_");
+    figures.push_back({lane->name, lane->driving, &lane->scorer, &lane->last_estimate});
   }
-
-  // the map over ground truth, with the wrong associations marked
-  PlotData truth{"truth", {}}, mapped{"mapped", {}}, spurious{"spurious", {}}, wrong{"wrong", {}};
-  for (const auto& c : track_.cones) truth.rows.push_back({c.position.x(), c.position.y()});
-  for (const MapMatch& m : matches)
-    (m.true_cone_id >= 0 ? mapped : spurious)
-        .rows.push_back({m.estimate.position.x(), m.estimate.position.y()});
-  for (const auto& p : wrong_association_places_) wrong.rows.push_back({p.x(), p.y()});
-  for (PlotData* d : {&truth, &mapped, &spurious, &wrong})
-    if (d->rows.empty()) d->rows.push_back({NAN, NAN});
-  const std::string header =
-      "set size ratio -1\nset grid\nset key outside right top\n"
-      "set xlabel 'x [m]'\nset ylabel 'y [m]'\n";
-  render_png(
-      header +
-          "set title 'map over ground truth (no alignment)'\n"
-          "plot $truth using 1:2 with points pt 6 ps 1.2 lc rgb '#808080' title 'true cones', "
-          "$mapped using 1:2 with points pt 7 ps 0.6 lc rgb '#1f4fd8' title 'mapped', "
-          "$spurious using 1:2 with points pt 2 ps 1.5 lc rgb '#d62728' title 'spurious', "
-          "$wrong using 1:2 with points pt 4 ps 1.5 lc rgb '#ff7f0e' title 'wrong association (" +
-          std::to_string(wrong_association_places_.size()) + ")'\n",
-      {truth, mapped, spurious, wrong}, dir / "slam_map.png");
-
-  // the map error per class over distance driven: a table and its figure
-  {
-    std::ofstream csv(dir / "map_error.csv");
-    csv << "distance_m,matched,rmse_m";
-    for (core::ConeClass c : kScoredClasses) csv << ",rmse_" << core::to_string(c) << "_m";
-    csv << "\n";
-    for (const MapErrorSnapshot& row : map_error_over_distance_) {
-      csv << row.distance_m << "," << row.matched;
-      for (double r : row.rmse_m) {
-        csv << ",";
-        if (!std::isnan(r)) csv << r;
-      }
-      csv << "\n";
-    }
-  }
-  PlotData map_error{"map_error", {}};
-  for (const MapErrorSnapshot& row : map_error_over_distance_) {
-    map_error.rows.push_back({row.distance_m});
-    map_error.rows.back().insert(map_error.rows.back().end(), row.rmse_m.begin(), row.rmse_m.end());
-  }
-  if (map_error.rows.empty()) map_error.rows.push_back({NAN, NAN, NAN, NAN, NAN, NAN});
-  render_png(
-      "set datafile missing 'nan'\nset grid\nset key outside right top\n"
-      "set xlabel 'distance driven [m]'\nset ylabel 'map RMSE [m]'\nset yrange [0:*]\n" +
-          ranges_if_nothing_to_plot({map_error}) +
-          "set title 'map error per class over distance (observed cones, no alignment)'\n"
-          "plot $map_error using 1:2 with lines lw 2 dt 2 lc rgb '#000000' title 'all', "
-          "$map_error using 1:3 with lines lw 1.5 lc rgb '#1f4fd8' title 'blue', "
-          "$map_error using 1:4 with lines lw 1.5 lc rgb '#e6b800' title 'yellow', "
-          "$map_error using 1:5 with lines lw 1.5 lc rgb '#ff7f0e' title 'orange small', "
-          "$map_error using 1:6 with lines lw 1.5 lc rgb '#d62728' title 'orange big'\n",
-      {map_error}, dir / "slam_map_error.png", 1000, 500);
-
-  // the trajectory and its error along the run
-  PlotData paths{"paths", {}}, error{"error", {}};
-  for (size_t i = 0; i < true_path_.size(); ++i) {
-    paths.rows.push_back(
-        {true_path_[i].x, true_path_[i].y, estimated_path_[i].x, estimated_path_[i].y});
-    error.rows.push_back(
-        {true_odometer_[i], (estimated_path_[i].position() - true_path_[i].position()).norm()});
-  }
-  if (paths.rows.empty()) paths.rows.push_back({NAN, NAN, NAN, NAN});
-  if (error.rows.empty()) error.rows.push_back({NAN, NAN});
-  render_png(header + ranges_if_nothing_to_plot({paths}) +
-                 "set title 'trajectory: truth and estimate'\n"
-                 "plot $paths using 1:2 with lines lw 2 lc rgb '#808080' title 'true', "
-                 "$paths using 3:4 with lines lw 1 lc rgb '#d62728' title 'estimated'\n",
-             {paths}, dir / "slam_trajectory.png");
-  render_png("set grid\nset xlabel 'distance driven [m]'\nset ylabel 'position error [m]'\n" +
-                 ranges_if_nothing_to_plot({error}) +
-                 "set title 'position error of the estimate over distance (no alignment)'\n"
-                 "plot $error using 1:2 with lines lw 1.5 lc rgb '#d62728' notitle\n",
-             {error}, dir / "slam_error.png", 1000, 500);
+  if (figures.size() > 1) write_lanes_figures(figures, track_, dir);
 }
 
 }  // namespace conesim::sim

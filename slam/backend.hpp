@@ -1,5 +1,5 @@
 #pragma once
-// The one interface every SLAM backend implements (ARCHITECTURE decision 5): odometry and cone
+// The one interface every SLAM backend implements (docs/architecture.md): odometry and cone
 // observations in, an estimate and the associations it made out. Several backends can run side
 // by side on the same input stream; one of them drives the car, the others run in shadow.
 
@@ -34,6 +34,10 @@ struct OdometryDelta {
 struct SlamInput {
   OdometryDelta odometry;
   core::ConeObservations observations;
+  /// The true cone id of each observation (-1: clutter). Empty, except for a back-end given
+  /// the ideal association (an ablation: the harness fills it for that lane only, and every
+  /// output of that lane says so).
+  std::vector<int> true_ids;
 };
 
 /// What a backend did with one observation of the last batch.
@@ -87,6 +91,9 @@ class Backend {
 
   /// A short name for metrics (`slam.<name>`).
   virtual std::string name() const = 0;
+
+  /// Microseconds the association of the last batch took, negative when not measured.
+  virtual double last_association_us() const { return -1.0; }
 };
 
 }  // namespace conesim::slam

@@ -185,4 +185,99 @@ std::vector<Association> associate(const AssociationConfig& config, const core::
   return out;
 }
 
+namespace {
+
+// the association's view of marginal landmarks and a pose covariance
+class MarginalProblem : public AssociationProblem {
+ public:
+  MarginalProblem(const AssociationConfig& config, const core::Pose2& pose,
+                  const Eigen::Matrix3d* pose_covariance,
+                  const std::vector<LandmarkCandidate>& candidates,
+                  const core::ConeObservations& observations, const std::vector<int>* labels)
+      : config_(config),
+        pose_(pose),
+        candidates_(candidates),
+        observations_(observations),
+        labels_(labels) {
+    pose_covariance_ = pose_covariance ? *pose_covariance : Eigen::Matrix3d::Zero();
+    for (const LandmarkCandidate& c : candidates) {
+      Eigen::Matrix<double, 2, 3> hp;
+      Eigen::Matrix2d hl;
+      predicted_.push_back(predict_observation(pose, c.position, &hp, &hl));
+      h_pose_.push_back(hp);
+      landmark_term_.push_back(
+          hl * (c.covariance + Eigen::Matrix2d::Identity() * c.drift_variance_m2) * hl.transpose());
+    }
+    for (const auto& o : observations.cones) in_map_.push_back(pose.transform(o.position));
+  }
+  int observations() const override { return static_cast<int>(observations_.cones.size()); }
+  int candidates() const override { return static_cast<int>(candidates_.size()); }
+  Eigen::Vector2d innovation(int i, int j) const override {
+    return observations_.cones[i].position - predicted_[j];
+  }
+  Eigen::Matrix2d innovation_covariance(int i, int j, int k, int m) const override {
+    Eigen::Matrix2d s = h_pose_[j] * pose_covariance_ * h_pose_[m].transpose();
+    if (j == m) s += landmark_term_[j];
+    if (i == k) s += observations_.cones[i].covariance;
+    return s;
+  }
+  core::Vec2 observation_in_map(int i) const override { return in_map_[i]; }
+  core::Vec2 candidate_position(int j) const override { return candidates_[j].position; }
+  bool allowed(int i, int j) const override {
+    if ((in_map_[i] - candidates_[j].position).squaredNorm() > 36.0) return false;
+    return class_compatible(observations_.cones[i].cls, candidates_[j].class_votes,
+                            config_.class_vote_margin);
+  }
+  int observation_track(int i) const override { return observations_.cones[i].track_id; }
+  int candidate_track(int j) const override { return candidates_[j].track_id; }
+  int observation_label(int i) const override {
+    return labels_ && i < static_cast<int>(labels_->size()) ? (*labels_)[i] : -1;
+  }
+  int candidate_label(int j) const override { return candidates_[j].label; }
+
+ private:
+  const AssociationConfig& config_;
+  core::Pose2 pose_;
+  Eigen::Matrix3d pose_covariance_;
+  const std::vector<LandmarkCandidate>& candidates_;
+  const core::ConeObservations& observations_;
+  const std::vector<int>* labels_;
+  std::vector<core::Vec2> predicted_, in_map_;
+  std::vector<Eigen::Matrix<double, 2, 3>> h_pose_;
+  std::vector<Eigen::Matrix2d> landmark_term_;
+};
+
+}  // namespace
+
+std::vector<Association> associate_with_method(
+    const AssociationParams& params, const AssociationConfig& config, const core::Pose2& pose,
+    const Eigen::Matrix3d* pose_covariance, const std::vector<LandmarkCandidate>& candidates,
+    const core::ConeObservations& observations, bool allow_new, const std::vector<int>* labels) {
+  const MarginalProblem problem(config, pose, pose_covariance, candidates, observations, labels);
+  const std::vector<int> pairing = associate(params, problem);
+  const int n_obs = problem.observations();
+  std::vector<Association> out(n_obs);
+  for (int i = 0; i < n_obs; ++i) {
+    if (pairing[i] >= 0) {
+      out[i] = {candidates[pairing[i]].id, Association::Kind::kMatched};
+      continue;
+    }
+    // the rest: new when far from every landmark, else rejected (as associate() does)
+    double nearest_d2 = std::numeric_limits<double>::infinity();
+    double nearest_m = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < problem.candidates(); ++j) {
+      const double d_m = (problem.observation_in_map(i) - problem.candidate_position(j)).norm();
+      nearest_m = std::min(nearest_m, d_m);
+      if (d_m > 6.0) continue;
+      const Eigen::Vector2d v = problem.innovation(i, j);
+      nearest_d2 =
+          std::min(nearest_d2, v.dot(problem.innovation_covariance(i, j, i, j).ldlt().solve(v)));
+    }
+    const bool far =
+        nearest_d2 > config.new_landmark_chi2 && nearest_m > config.new_landmark_min_distance_m;
+    out[i].kind = allow_new && far ? Association::Kind::kNew : Association::Kind::kRejected;
+  }
+  return out;
+}
+
 }  // namespace conesim::slam

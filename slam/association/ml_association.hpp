@@ -10,6 +10,7 @@
 #include "core/autonomy_types.hpp"
 #include "core/cone.hpp"
 #include "core/geometry.hpp"
+#include "slam/association/methods.hpp"
 #include "slam/backend.hpp"
 
 namespace conesim::slam {
@@ -49,6 +50,8 @@ struct LandmarkCandidate {
   std::array<int, 5> class_votes{};
   /// Perception track id it was last matched with, -1 when none.
   int track_id = -1;
+  /// The true cone it was made from (ideal association only), -1 otherwise.
+  int label = -1;
   /// Extra isotropic position variance for drift since it was last seen (loop closure), m^2.
   double drift_variance_m2 = 0.0;
 };
@@ -80,5 +83,16 @@ std::vector<Association> associate(const AssociationConfig& config, const core::
                                    const Eigen::Matrix3d* pose_covariance,
                                    const std::vector<LandmarkCandidate>& candidates,
                                    const core::ConeObservations& observations, bool allow_new);
+
+/// The same with one of the injectable methods (slam/association/methods.hpp) on the
+/// candidates' marginal covariances (drift allowance included): the pairings of two
+/// observations are correlated through the shared pose covariance, and through the landmark's
+/// covariance when they pair with the same landmark. Unmatched observations are new or rejected
+/// as in associate().
+std::vector<Association> associate_with_method(
+    const AssociationParams& params, const AssociationConfig& config, const core::Pose2& pose,
+    const Eigen::Matrix3d* pose_covariance, const std::vector<LandmarkCandidate>& candidates,
+    const core::ConeObservations& observations, bool allow_new,
+    const std::vector<int>* labels = nullptr);
 
 }  // namespace conesim::slam

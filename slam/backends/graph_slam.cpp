@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <sstream>
 #include <unordered_set>
@@ -109,6 +110,7 @@ void GraphSlam::set_prior_map(const std::vector<core::MapCone>& map) {
 void GraphSlam::process(const SlamInput& input) {
   // predict, associate, update, optimise, then keep the map tidy and close the loop
   predict(input.odometry);
+  labels_ = input.true_ids;
   associate_batch(input.observations);
   update(input.observations);
   if (phase_ == core::SlamPhase::kLocalisation) {
@@ -172,6 +174,7 @@ std::vector<LandmarkCandidate> GraphSlam::candidates(double farthest_observation
     c.covariance = lm.covariance;
     c.class_votes = lm.class_votes;
     c.track_id = lm.track_id;
+    c.label = lm.label;
     if (!localising) {
       c.drift_variance_m2 =
           std::min(config_.max_drift_variance_m2,
@@ -210,9 +213,17 @@ void GraphSlam::associate_batch(const core::ConeObservations& observations) {
   double farthest_m = 0.0;
   for (const core::ConeObservation& o : observations.cones)
     farthest_m = std::max(farthest_m, o.position.norm());
-  associations_ = associate(config_.association, poses_.back().pose(), &pose_covariance_,
-                            candidates(farthest_m), observations,
-                            phase_ == core::SlamPhase::kMapping);
+  const std::vector<LandmarkCandidate> in_reach = candidates(farthest_m);
+  const auto start = std::chrono::steady_clock::now();
+  const bool allow_new = phase_ == core::SlamPhase::kMapping;
+  associations_ =
+      config_.method
+          ? associate_with_method(*config_.method, config_.association, poses_.back().pose(),
+                                  &pose_covariance_, in_reach, observations, allow_new, &labels_)
+          : associate(config_.association, poses_.back().pose(), &pose_covariance_, in_reach,
+                      observations, allow_new);
+  association_us_ =
+      std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
 }
 
 void GraphSlam::update(const core::ConeObservations& observations) {
@@ -236,6 +247,7 @@ void GraphSlam::update(const core::ConeObservations& observations) {
       lm.covariance = rot * obs.covariance * rot.transpose();
       lm.first_travel_m = travel_m_;
       lm.first_heading_rad = pose.yaw;
+      if (i < labels_.size()) lm.label = labels_[i];
       landmarks_.push_back(std::move(lm));
       a.landmark_id = landmarks_.back().id;
     }

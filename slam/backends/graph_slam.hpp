@@ -27,6 +27,9 @@ namespace conesim::slam {
 /// GraphSLAM parameters.
 struct GraphSlamConfig {
   AssociationConfig association;
+  /// One of the injectable methods (nn, scnn, jcbb) instead of the built-in ML+IC with the
+  /// drift consensus (tracking-aided when association.use_track_ids); unset: the built-in.
+  std::optional<AssociationParams> method;
   LoopClosureConfig loop_closure;
 
   /// The cone sensor's field of view (for the landmark statistics): its mount ahead of the rear
@@ -86,6 +89,7 @@ class GraphSlam : public Backend {
   const std::vector<Association>& last_associations() const override { return associations_; }
   int loop_closures() const override { return loop_closures_; }
   std::string name() const override { return "graph"; }
+  double last_association_us() const override { return association_us_; }
 
   /// The whole estimated trajectory, one pose per processed batch (the poses of the pose nodes,
   /// smoothed by the optimisations).
@@ -126,6 +130,8 @@ class GraphSlam : public Backend {
     Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity();
     std::array<int, 5> class_votes{};
     int track_id = -1;
+    /// The true cone it was made from (ideal association only).
+    int label = -1;
     int sightings = 0;
     int misses = 0;
     bool confirmed = false;
@@ -188,6 +194,8 @@ class GraphSlam : public Backend {
   /// The first pose localised on the fixed map (poses before it belong to the mapping).
   int first_localised_pose_ = 1;
   std::vector<Association> associations_;
+  /// The labels of the batch being processed (ideal association only, else empty).
+  std::vector<int> labels_;
   core::SlamPhase phase_ = core::SlamPhase::kMapping;
   bool map_complete_ = false;
   int loop_closures_ = 0;
@@ -199,6 +207,7 @@ class GraphSlam : public Backend {
   /// Poses [0, folded_poses_) have their observation edges folded into landmark priors.
   int folded_poses_ = 0;
   double travel_m_ = 0.0;
+  double association_us_ = 0.0;
   double speed_mps_ = 0.0;
   double yaw_rate_rps_ = 0.0;
 };

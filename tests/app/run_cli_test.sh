@@ -31,6 +31,13 @@ bad laps_wrap '^--set: driver\.trackdrive_laps: expected a whole number' \
 bad width_wrap '^--set: sensors\.camera\.width_px: expected a whole number' \
   skidpad --set sensors.camera.width_px=4294967936
 
+# SLAM back-ends and association methods by name
+bad slam_backend "^--set: slam\\.drive: expected none or a SLAM back-end \\(graph, ekf\\), got 'magic'" \
+  trackdrive-graphslam --set slam.drive=magic
+bad slam_shadow '^--set: slam\.shadow: expected back-ends' trackdrive-graphslam --set 'slam.shadow=[ekf,x]'
+bad slam_association '^--set: slam\.association: expected an association method' \
+  trackdrive-graphslam --set slam.association=guess
+
 # 2: a time past the clock; 3: referee values checked with the scenario
 bad timeout_overflow '^--set: referee\.timeout_skidpad_s: expected at most' \
   skidpad --set referee.timeout_skidpad_s=1e13

@@ -55,6 +55,17 @@ RegressionRun run(const std::string& track, unsigned long long seed) {
   return {"trackdrive", track, "", seed, "trackdrive/" + track + "-s" + std::to_string(seed)};
 }
 
+TEST(Regress, RowTakesTheDrivingBackEndsFiguresNotAShadows) {
+  // "ekf" sorts before "graph": the row must follow slam_driving, not the first key
+  json m = metrics(true, 20.0);
+  m["slam_driving"] = "graph";
+  m["slam"]["ekf"] = {{"map_rmse_m", 0.5}, {"ate_rmse_m", 0.6}, {"da_correct_fraction", 0.9}};
+  const RunRow r = make_row(run("pacsim/FSG19", 1), m, 0);
+  EXPECT_DOUBLE_EQ(r.map_rmse_m, 0.05);
+  EXPECT_DOUBLE_EQ(r.ate_rmse_m, 0.04);
+  EXPECT_DOUBLE_EQ(r.da_correct_fraction, 0.998);
+}
+
 TEST(Regress, RowCarriesVerdictReasonPlaceAndFigures) {
   const RunRow r = make_row(run("pacsim/FSG19", 1), metrics(false, 20.0), 1);
   EXPECT_FALSE(r.passed);

@@ -74,6 +74,27 @@ TEST(Report, PassedRunWithSlamShowsItsFigures) {
   EXPECT_NE(page.find("0.041 m"), std::string::npos);
 }
 
+TEST(Report, DrivingBackEndFirstThenShadowsWithTheIdealOneFlagged) {
+  json m = failed_run();
+  m["slam_driving"] = "graph";
+  m["slam"] = {{"ekf", {{"map_rmse_m", 0.05}, {"ideal_association", false}}},
+               {"ekf-ideal", {{"map_rmse_m", 0.04}, {"ideal_association", true}}},
+               {"graph", {{"map_rmse_m", 0.03}, {"ideal_association", false}}}};
+  const std::string page = run_report_html("/nonexistent", m);
+  const size_t graph = page.find("SLAM: graph (drives the car)");
+  const size_t ekf = page.find("SLAM: ekf (shadow, scored only)");
+  const size_t ideal = page.find("SLAM: ekf-ideal (shadow, scored only)");
+  ASSERT_NE(graph, std::string::npos);
+  ASSERT_NE(ekf, std::string::npos);
+  ASSERT_NE(ideal, std::string::npos);
+  EXPECT_LT(graph, ekf);
+  // the flag stands in the ideal lane's section, and only there
+  const size_t flag = page.find("Ideal association:");
+  ASSERT_NE(flag, std::string::npos);
+  EXPECT_GT(flag, ideal);
+  EXPECT_EQ(page.find("Ideal association:", flag + 1), std::string::npos);
+}
+
 TEST(Report, HumanNumbers) {
   EXPECT_EQ(human_number(3.0), "3");
   EXPECT_EQ(human_number(0.123456), "0.123");

@@ -35,6 +35,85 @@ class ScenarioFile : public ::testing::Test {
   fs::path dir_;
 };
 
+TEST_F(ScenarioFile, SlamBlockNamesTheDrivingAndTheShadowBackEnds) {
+  const std::string head = "event: trackdrive\nperception: cone_sensor\n";
+  // the plain string, and the block with shadows, associations and parameters
+  EXPECT_EQ(load_scenario(write(head + "slam: ekf\n")).slam, "ekf");
+  const Scenario s = load_scenario(
+      write(head +
+            "slam:\n  drive: graph\n  shadow: [ekf, 'ekf:jcbb', 'graph:nn']\n"
+            "  association: {ekf: scnn}\n  ekf: {confirm_sightings: 2, closure_delay_m: 10}\n"));
+  EXPECT_EQ(s.slam, "graph");
+  ASSERT_EQ(s.slam_shadows.size(), 3u);
+  EXPECT_EQ(s.slam_shadows[0].lane_name(), "ekf");
+  EXPECT_EQ(s.slam_shadows[1].lane_name(), "ekf-jcbb");
+  EXPECT_EQ(s.slam_shadows[2].lane_name(), "graph-nn");
+  EXPECT_EQ(s.slam_association.at("ekf"), slam::AssociationMethod::kScnn);
+  EXPECT_EQ(s.slam_settings.ekf.confirm_sightings, 2);
+  EXPECT_DOUBLE_EQ(s.slam_settings.ekf.closure_delay_m, 10.0);
+  // --set extends the plain string form
+  const Scenario set = load_scenario(write(head + "slam: graph\n"), {"slam.shadow=[ekf]"});
+  EXPECT_EQ(set.slam, "graph");
+  ASSERT_EQ(set.slam_shadows.size(), 1u);
+  EXPECT_EQ(set.slam_shadows[0].backend, "ekf");
+  EXPECT_EQ(load_scenario(write(head + "slam: graph\n"), {"slam.drive=ekf"}).slam, "ekf");
+  // one shadow without brackets
+  const Scenario one = load_scenario(write(head + "slam: graph\n"), {"slam.shadow=ekf"});
+  ASSERT_EQ(one.slam_shadows.size(), 1u);
+  EXPECT_EQ(one.slam_shadows[0].lane_name(), "ekf");
+}
+
+TEST_F(ScenarioFile, BadSlamBlocksNameTheKeyAndWhatWasExpected) {
+  const std::string head = "event: trackdrive\nperception: cone_sensor\n";
+  EXPECT_NE(error_of(head + "slam: fastslam9\n")
+                .find("s.yaml:3: slam: expected none or a SLAM back-end (graph, ekf), got "
+                      "'fastslam9'"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, shadow: [ekf, foo]}\n")
+                .find("slam.shadow: expected back-ends (graph, ekf"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, shadow: ['ekf:magic']}\n")
+                .find("slam.shadow: expected NAME:METHOD with a method of nn, ml, scnn, jcbb, "
+                      "tracking"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, association: psychic}\n")
+                .find("slam.association: expected an association method (nn, ml, scnn, jcbb, "
+                      "tracking, ideal), got 'psychic'"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, association: {ekf: x}}\n")
+                .find("slam.association.ekf: expected an association method"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, bogus: 1}\n")
+                .find("slam.bogus: unknown key; expected one of: drive, shadow, association, ekf, "
+                      "graph"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {shadow: [ekf]}\n")
+                .find("slam.shadow: shadow back-ends run beside a driving one"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: ekf, ekf: {confirm_sightings: 0}}\n")
+                .find("slam.ekf.confirm_sightings: expected a count >= 1"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, graph: {window_poses: 0}}\n")
+                .find("slam.graph.window_poses: expected >= 1"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, graph: {track_gate_chi2: -1}}\n")
+                .find("slam.graph.track_gate_chi2: expected a chi-square gate > 0"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: ekf, ekf: {joint_probability: 2}}\n")
+                .find("slam.ekf.joint_probability: expected a probability in (0.5, 1)"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: graph\n", {"slam.shadow=[nope]"})
+                .find("--set: slam.shadow: expected back-ends"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: [graph]\n").find("slam: expected a map"), std::string::npos);
+  // the ideal association reads the labels: a shadow may use it, the driving back-end may not
+  EXPECT_NE(error_of(head + "slam: {drive: ekf, association: {ekf: ideal}}\n")
+                .find("slam.association: ideal reads the ground-truth labels: it is for shadow "
+                      "back-ends only"),
+            std::string::npos);
+  EXPECT_EQ(error_of(head + "slam: {drive: graph, shadow: ['graph:ideal', 'ekf:ideal']}\n"), "");
+}
+
 TEST_F(ScenarioFile, ShippedScenariosLoadForAllFourEvents) {
   for (const char* name : {"skidpad", "acceleration", "autocross", "trackdrive"}) {
     const Scenario s = load_scenario(find_scenario(name));

@@ -42,7 +42,7 @@ TEST(VehicleSim, AccelerationRunTakesAsLongAsARealFsCar) {
     t_s += car.timestep_s();
   }
   std::printf("measured: 75 m in %.2f s, %.1f m/s at the line\n", t_s, car.truth().vx_mps);
-  // real FS electric cars: 3.5-4.5 s over 75 m (VEHICLE_NOTES.md measured 3.73 s)
+  // real FS electric cars: 3.5-4.5 s over 75 m (docs/vehicle.md)
   EXPECT_GT(t_s, 3.3);
   EXPECT_LT(t_s, 4.5);
   EXPECT_LT(std::abs(car.truth().pose.y), 0.2);

@@ -2,14 +2,16 @@
 // An offline drive for the SLAM tests: a kinematic bicycle follows a track's centre line with
 // pure pursuit; the vehicle sensors (IMU, wheel encoders, steering) and the detection-level cone
 // sensor sample it on their own clocks; the odometry integrates between cone batches and a SLAM
-// backend processes each batch. Everything a user would look at is scored against the truth:
-// map RMSE (no alignment), trajectory RMSE, association accuracy, loop closures, update times.
+// backend processes each batch. Everything a user would look at is scored against the truth by
+// the same scorer the closed loop uses (sim/slam_score.hpp): map RMSE (no alignment),
+// trajectory RMSE, association accuracy, loop closures; and the update times.
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <functional>
 #include <map>
 #include <numbers>
 #include <vector>
@@ -17,6 +19,7 @@
 #include "core/time.hpp"
 #include "sensors/cone_sensor.hpp"
 #include "sensors/vehicle_sensors.hpp"
+#include "sim/slam_score.hpp"
 #include "slam/backend.hpp"
 #include "slam/odometry.hpp"
 #include "tracks/track.hpp"
@@ -50,6 +53,8 @@ struct DriveParams {
   std::vector<core::MapCone> prior_map;
   /// Print a line every 10 batches (error, associations, map size, update time).
   bool trace = false;
+  /// Called after every batch's update with the batch's number (from 1), when set.
+  std::function<void(int)> after_batch;
 };
 
 /// What the drive measured.
@@ -57,8 +62,8 @@ struct DriveResult {
   double lap_m = 0.0;
   double travel_m = 0.0;
   int batches = 0;
-  /// Final map against the true cones: each estimated cone matched to the nearest true one
-  /// within 1 m; RMSE over the matched, and the counts.
+  /// Final map against the true cones (the scorer's one-to-one match within 1 m): RMSE over the
+  /// matched, the counts; missed: true cones once in the cone sensor's view that the map lacks.
   double map_rmse_m = 0.0;
   int map_matched = 0;
   int map_spurious = 0;
@@ -69,7 +74,8 @@ struct DriveResult {
   double max_position_error_m = 0.0;
   /// The same over the batches in the localisation phase only (after the loop closed).
   double ate_localisation_rmse_m = 0.0;
-  /// Associations (matched and new) checked against the labels.
+  /// Associations checked against the labels by the scorer (a match is right when the
+  /// landmark's majority true cone so far is the observation's); rejected ones counted apart.
   int da_correct = 0;
   int da_wrong = 0;
   int da_rejected = 0;
@@ -151,8 +157,11 @@ inline DriveResult drive(const tracks::Track& track, Backend& backend, const Dri
   std::array<double, 4> wheel_angle{};
   size_t target = closest_index(line, pose.position());
 
-  std::map<int, std::map<int, int>> landmark_truth;  // landmark id -> true id -> count
-  std::vector<std::pair<int, int>> da_log;           // landmark id, true id
+  // the closed loop's scorer, with the cone sensor's view
+  const sim::PerceptionView view{p.cone_sensor.mount_x_m, p.cone_sensor.min_range_m,
+                                 p.cone_sensor.max_range_m, p.cone_sensor.fov_deg};
+  sim::SlamScorer scorer(track, view);
+  if (!p.prior_map.empty()) scorer.set_prior_map_identities();
   std::map<int, int> landmark_first_truth;
   std::vector<double> update_ms, update_cpu_ms;
   double sq_pos = 0.0, sq_yaw = 0.0, sq_loc = 0.0;
@@ -194,11 +203,12 @@ inline DriveResult drive(const tracks::Track& track, Backend& backend, const Dri
     }
     if (t % wheel_us == 0) odometry.add_wheel_speeds(wheels.sample(truth));
     if (t % steer_us == 0) odometry.add_steering(steering.sample(truth));
+    if (t % 50'000 == 0) scorer.note_cones_in_view(pose);
     if (t % cone_us != 0) continue;
 
     // one cone batch: odometry delta, observations, SLAM update (timed)
     auto [observations, labels] = cone_sensor.sample(track, pose, t, nullptr);
-    SlamInput input{odometry.take_delta(t), observations};
+    SlamInput input{odometry.take_delta(t), observations, {}};
     const auto start = std::chrono::steady_clock::now();
     const double cpu_start = core::thread_cpu_ms();
     backend.process(input);
@@ -207,6 +217,7 @@ inline DriveResult drive(const tracks::Track& track, Backend& backend, const Dri
     update_ms.push_back(std::chrono::duration<double, std::milli>(end - start).count());
     ++r.batches;
     r.truth[t] = pose;
+    if (p.after_batch) p.after_batch(r.batches);
 
     // score the online estimate and log the associations
     const core::Estimate e = backend.estimate();
@@ -219,6 +230,20 @@ inline DriveResult drive(const tracks::Track& track, Backend& backend, const Dri
     sq_yaw += std::pow(core::normalize_angle(e.pose.yaw - pose.yaw), 2);
     r.max_position_error_m = std::max(r.max_position_error_m, err);
     const auto& associations = backend.last_associations();
+    {
+      sim::SlamScorer::Update u;
+      u.stamp = t;
+      u.true_pose = pose;
+      u.observations = &observations;
+      u.true_ids = &labels.cone_id;
+      u.estimate = &e;
+      u.associations = &associations;
+      u.loop_closures = backend.loop_closures();
+      u.wall_ms = update_ms.back();
+      u.cpu_ms = update_cpu_ms.back();
+      u.association_us = backend.last_association_us();
+      scorer.score(u);
+    }
     if (p.trace && r.batches % 10 == 0) {
       int matched = 0, created = 0, rejected = 0;
       for (const Association& a : associations) {
@@ -238,8 +263,6 @@ inline DriveResult drive(const tracks::Track& track, Backend& backend, const Dri
         ++r.da_rejected;
         continue;
       }
-      landmark_truth[a.landmark_id][labels.cone_id[i]]++;
-      da_log.emplace_back(a.landmark_id, labels.cone_id[i]);
       if (p.trace && !landmark_first_truth.count(a.landmark_id))
         landmark_first_truth[a.landmark_id] = labels.cone_id[i];
       if (p.trace && landmark_first_truth[a.landmark_id] != labels.cone_id[i])
@@ -251,43 +274,17 @@ inline DriveResult drive(const tracks::Track& track, Backend& backend, const Dri
       r.loop_closure_travel_m = r.travel_m;
   }
 
-  // associations: correct when the landmark's majority true id is the observation's
-  std::map<int, int> majority;
-  for (const auto& [id, counts] : landmark_truth) {
-    majority[id] = std::max_element(counts.begin(), counts.end(), [](auto& a, auto& b) {
-                     return a.second < b.second;
-                   })->first;
-  }
-  for (const auto& [landmark, truth_id] : da_log) {
-    (majority[landmark] == truth_id ? r.da_correct : r.da_wrong)++;
-  }
-  r.da_correct_fraction =
-      static_cast<double>(r.da_correct) / std::max(1, r.da_correct + r.da_wrong);
-
-  // the map: nearest true cone within 1 m, no alignment
+  // associations and the map by the scorer
   const core::Estimate e = backend.estimate();
-  double sq_map = 0.0;
-  std::vector<bool> true_matched(track.cones.size(), false);
-  for (const core::MapCone& c : e.map) {
-    double best = 1e300;
-    size_t best_i = 0;
-    for (size_t i = 0; i < track.cones.size(); ++i) {
-      const double d = (track.cones[i].position - c.position).norm();
-      if (d < best) {
-        best = d;
-        best_i = i;
-      }
-    }
-    if (best > 1.0) {
-      ++r.map_spurious;
-      continue;
-    }
-    ++r.map_matched;
-    true_matched[best_i] = true;
-    sq_map += best * best;
-  }
-  r.map_missed = static_cast<int>(std::count(true_matched.begin(), true_matched.end(), false));
-  r.map_rmse_m = std::sqrt(sq_map / std::max(1, r.map_matched));
+  const nlohmann::json m = scorer.metrics(e);
+  r.da_correct = scorer.da_correct();
+  r.da_wrong = scorer.da_wrong();
+  r.da_correct_fraction =
+      m["da_correct_fraction"].is_null() ? 0.0 : m["da_correct_fraction"].get<double>();
+  r.map_rmse_m = m["map_rmse_m"].is_null() ? 0.0 : m["map_rmse_m"].get<double>();
+  r.map_matched = m["map_matched"].get<int>();
+  r.map_spurious = m["map_spurious"].get<int>();
+  r.map_missed = m["map_missed"].get<int>();
   r.ate_rmse_m = std::sqrt(sq_pos / std::max(1, r.batches));
   r.yaw_rmse_rad = std::sqrt(sq_yaw / std::max(1, r.batches));
   r.ate_localisation_rmse_m = std::sqrt(sq_loc / std::max(1, n_loc));

@@ -1,0 +1,50 @@
+#pragma once
+// The vehicle sensors that feed SLAM's odometry (IMU, wheel encoders, steering angle), sampled
+// on their own schedules from the simulated car and delivered after their latencies in stamp
+// order. The SLAM lanes read the odometry from here; nothing here knows of a back-end.
+
+#include <deque>
+#include <utility>
+
+#include "core/time.hpp"
+#include "sensors/vehicle_sensors.hpp"
+#include "sim/vehicle_sim.hpp"
+#include "slam/odometry.hpp"
+
+namespace conesim::sim {
+
+class VehicleSensorFeed {
+ public:
+  /// The sensors with noise streams derived from the scenario seed.
+  explicit VehicleSensorFeed(uint64_t seed);
+
+  /// Samples the sensors due at t and delivers what has arrived by t.
+  void step(core::TimeUs t, const VehicleSim& car);
+
+  /// Feeds the delivered samples stamped up to `stamp` into the odometry and drops them.
+  void feed(slam::Odometry& odometry, core::TimeUs stamp);
+
+  /// Feeds the delivered samples stamped up to `stamp` into the odometry without dropping them
+  /// (for an estimate carried forward to the present).
+  void feed_copy(slam::Odometry& odometry, core::TimeUs stamp) const;
+
+ private:
+  struct Sample {
+    core::TimeUs stamp;
+    int kind;  // 0 imu, 1 wheels, 2 steering
+    core::ImuSample imu;
+    core::WheelSpeeds wheels;
+    core::SteeringSample steering;
+  };
+  static void add(slam::Odometry& odometry, const Sample& sample);
+
+  sensors::Imu imu_;
+  sensors::WheelEncoders wheels_;
+  sensors::SteeringSensor steering_;
+  // samples taken but not yet arrived: (arrival time, sample)
+  std::deque<std::pair<core::TimeUs, Sample>> in_flight_;
+  // samples arrived but not yet fed, in stamp order
+  std::deque<Sample> delivered_;
+};
+
+}  // namespace conesim::sim

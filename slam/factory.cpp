@@ -1,0 +1,31 @@
+#include "slam/factory.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace conesim::slam {
+
+const std::vector<std::string>& backend_names() {
+  static const std::vector<std::string> names = {"graph", "ekf"};
+  return names;
+}
+
+std::string backend_list() {
+  std::string out;
+  for (const std::string& n : backend_names()) out += (out.empty() ? "" : ", ") + n;
+  return out;
+}
+
+bool is_backend(const std::string& name) {
+  const auto& names = backend_names();
+  return std::find(names.begin(), names.end(), name) != names.end();
+}
+
+std::unique_ptr<Backend> make_backend(const std::string& name, const BackendSettings& settings) {
+  if (name == "graph") return std::make_unique<GraphSlam>(settings.graph);
+  if (name == "ekf") return std::make_unique<EkfSlam>(settings.ekf);
+  throw std::invalid_argument("unknown SLAM back-end '" + name + "'; expected one of " +
+                              backend_list());
+}
+
+}  // namespace conesim::slam

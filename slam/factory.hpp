@@ -1,0 +1,34 @@
+#pragma once
+// Every SLAM back-end by name, behind the one Backend interface (docs/architecture.md, "Adding
+// a back-end"). The harness builds the driving back-end and the shadow ones here.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "slam/backend.hpp"
+#include "slam/backends/ekf_slam.hpp"
+#include "slam/backends/graph_slam.hpp"
+
+namespace conesim::slam {
+
+/// The parameters of every back-end; each takes its own.
+struct BackendSettings {
+  GraphSlamConfig graph;
+  EkfSlamConfig ekf;
+};
+
+/// The back-ends' names: graph, ekf.
+const std::vector<std::string>& backend_names();
+
+/// "graph, ekf" for error messages.
+std::string backend_list();
+
+/// True for a known back-end name.
+bool is_backend(const std::string& name);
+
+/// The back-end of that name with its settings; throws std::invalid_argument for an unknown
+/// name.
+std::unique_ptr<Backend> make_backend(const std::string& name, const BackendSettings& settings);
+
+}  // namespace conesim::slam

@@ -1,0 +1,40 @@
+// EKF SLAM driving the shipped ten-lap GraphSLAM trackdrive on generated circuits 1-10: every
+// run completes with no penalty and meets the scenario's SLAM criteria.
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include "sim/run.hpp"
+#include "sim/scenario.hpp"
+
+namespace conesim::sim {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(SlamLanesSlow, EkfSlamDrivesTenGeneratedCircuitsWithoutPenalties) {
+  for (uint64_t seed = 1; seed <= 10; ++seed) {
+    const Scenario s =
+        load_scenario(find_scenario("trackdrive-graphslam"), {"slam.drive=ekf"}, seed);
+    RunOptions options;
+    options.out_dir = fs::temp_directory_path() / ("conesim-ekf-drive-" + std::to_string(seed) +
+                                                   "-" + std::to_string(::getpid()));
+    options.plot = false;
+    const RunResult r = run_scenario(s, scenario_track(s), options);
+    fs::remove_all(options.out_dir);
+    const nlohmann::json& ekf = r.metrics["slam"]["ekf"];
+    std::printf(
+        "seed %2llu: %s, %zu cones hit, %d off-course, map RMSE %.3f m, ATE %.3f m, DA %.5f\n",
+        static_cast<unsigned long long>(seed), r.referee.completed ? "completed" : "DNF",
+        r.referee.cones_hit.size(), r.referee.off_course, ekf["map_rmse_m"].get<double>(),
+        ekf["ate_rmse_m"].get<double>(), ekf["da_correct_fraction"].get<double>());
+    EXPECT_TRUE(r.referee.completed) << "seed " << seed << ": " << r.referee.dnf_reason;
+    EXPECT_EQ(r.referee.cones_hit.size(), 0u) << "seed " << seed;
+    EXPECT_EQ(r.referee.off_course, 0) << "seed " << seed;
+    EXPECT_TRUE(r.passed) << "seed " << seed << ": "
+                          << (r.failures.empty() ? "" : r.failures.front());
+  }
+}
+
+}  // namespace
+}  // namespace conesim::sim

@@ -1,0 +1,124 @@
+// SLAM lanes in the closed loop: shadow back-ends get the driving one's input, are scored, and
+// never change the run; every lane's figures and estimate columns are written.
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "sim/run.hpp"
+#include "sim/scenario.hpp"
+
+namespace conesim::sim {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct LaneRun {
+  RunResult result;
+  std::vector<std::string> trajectory;  // trajectory.csv's lines
+};
+
+// two laps of the shipped GraphSLAM trackdrive (the loop closes, then localisation)
+LaneRun run_trackdrive(const std::vector<std::string>& sets, const std::string& tag) {
+  std::vector<std::string> overrides = {"driver.trackdrive_laps=2"};
+  overrides.insert(overrides.end(), sets.begin(), sets.end());
+  const Scenario s = load_scenario(find_scenario("trackdrive-graphslam"), overrides);
+  RunOptions options;
+  options.out_dir =
+      fs::temp_directory_path() / ("conesim-lanes-" + tag + "-" + std::to_string(::getpid()));
+  options.plot = false;
+  LaneRun run;
+  run.result = run_scenario(s, scenario_track(s), options);
+  std::ifstream in(options.out_dir / "trajectory.csv");
+  for (std::string line; std::getline(in, line);) run.trajectory.push_back(line);
+  fs::remove_all(options.out_dir);
+  return run;
+}
+
+// the first n comma-separated fields of a line
+std::string first_fields(const std::string& line, int n) {
+  std::string out;
+  std::stringstream ss(line);
+  std::string field;
+  for (int k = 0; k < n && std::getline(ss, field, ','); ++k) out += field + ",";
+  return out;
+}
+
+// a lane's figures without those that depend on the machine's speed
+nlohmann::json without_timing(nlohmann::json m) {
+  for (const char* key : {"update_ms_median", "update_ms_p99", "update_cpu_ms_median",
+                          "update_cpu_ms_p99", "association_us_median", "association_us_p99"})
+    m.erase(key);
+  return m;
+}
+
+TEST(SlamLanes, ShadowsAreScoredAndLeaveTheDrivenTrajectoryBitIdentical) {
+  const LaneRun alone = run_trackdrive({}, "alone");
+  const LaneRun shadowed =
+      run_trackdrive({"slam.shadow=[ekf, 'ekf:jcbb', 'graph:nn', 'ekf:ideal']"}, "shadowed");
+  ASSERT_TRUE(alone.result.referee.completed);
+
+  // the car drove the same: every row's truth, command and driving estimate to the last digit
+  ASSERT_EQ(alone.trajectory.size(), shadowed.trajectory.size());
+  for (size_t i = 1; i < alone.trajectory.size(); ++i)
+    ASSERT_EQ(first_fields(alone.trajectory[i], 10), first_fields(shadowed.trajectory[i], 10))
+        << "row " << i;
+  EXPECT_EQ(alone.result.referee.final_time_s, shadowed.result.referee.final_time_s);
+  EXPECT_EQ(without_timing(alone.result.metrics["slam"]["graph"]),
+            without_timing(shadowed.result.metrics["slam"]["graph"]));
+
+  // each shadow has its figures and its estimate columns
+  const nlohmann::json& slam = shadowed.result.metrics["slam"];
+  for (const char* lane : {"ekf", "ekf-jcbb", "graph-nn", "ekf-ideal"}) {
+    ASSERT_TRUE(slam.contains(lane)) << lane;
+    EXPECT_EQ(slam[lane]["role"], "shadow");
+    EXPECT_GT(slam[lane]["updates"].get<int>(), 500) << lane;
+    EXPECT_FALSE(slam[lane]["association_us_median"].is_null()) << lane;
+  }
+  EXPECT_EQ(slam["graph"]["role"], "drive");
+  EXPECT_EQ(shadowed.result.metrics["slam_shadows"],
+            nlohmann::json::array({"ekf", "ekf-jcbb", "graph-nn", "ekf-ideal"}));
+  // the labels reached the ideal lane only, and its figures say so
+  EXPECT_TRUE(slam["ekf-ideal"]["ideal_association"].get<bool>());
+  EXPECT_EQ(slam["ekf-ideal"]["association"], "ideal");
+  EXPECT_EQ(slam["ekf-ideal"]["da_wrong"].get<int>(), 0);
+  for (const char* lane : {"graph", "ekf", "ekf-jcbb", "graph-nn"})
+    EXPECT_FALSE(slam[lane]["ideal_association"].get<bool>()) << lane;
+  EXPECT_EQ(slam["ekf-jcbb"]["association"], "jcbb");
+  EXPECT_NE(shadowed.trajectory[0].find(",ekf_x_m,ekf_y_m,ekf_yaw_rad,ekf-jcbb_x_m"),
+            std::string::npos);
+  // EKF SLAM in shadow meets the map and association targets of the GraphSLAM scenario
+  EXPECT_LE(slam["ekf"]["map_rmse_m"].get<double>(), 0.15);
+  EXPECT_GE(slam["ekf"]["da_correct_fraction"].get<double>(), 0.99);
+  EXPECT_EQ(slam["ekf"]["loop_closures"].get<int>(), 1);
+  EXPECT_EQ(slam["ekf"]["false_loop_closures"].get<int>(), 0);
+  EXPECT_EQ(slam["ekf"]["phase"], "localisation");
+}
+
+TEST(SlamLanes, ShadowFiguresAreTheSameOnEveryRun) {
+  // the shadows run on threads of their own: their figures must not depend on the timing
+  const LaneRun a = run_trackdrive({"slam.shadow=[ekf]", "driver.trackdrive_laps=1"}, "a");
+  const LaneRun b = run_trackdrive({"slam.shadow=[ekf]", "driver.trackdrive_laps=1"}, "b");
+  EXPECT_EQ(without_timing(a.result.metrics["slam"]["ekf"]),
+            without_timing(b.result.metrics["slam"]["ekf"]));
+  EXPECT_EQ(a.trajectory, b.trajectory);
+}
+
+TEST(SlamLanes, EkfSlamDrivesTrackdriveWithoutPenalties) {
+  const LaneRun run = run_trackdrive({"slam.drive=ekf"}, "ekf");
+  const RunResult& r = run.result;
+  EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
+  EXPECT_EQ(r.referee.cones_hit.size(), 0u);
+  EXPECT_EQ(r.referee.off_course, 0);
+  // (the trajectory RMSE of two laps is mostly lap one's drift: the ten-lap scenario's
+  // criterion is checked on ten seeds in slam_lanes_slow_test.cpp)
+  EXPECT_LE(r.metrics["slam"]["ekf"]["map_rmse_m"].get<double>(), 0.15);
+  EXPECT_GE(r.metrics["slam"]["ekf"]["da_correct_fraction"].get<double>(), 0.99);
+  EXPECT_EQ(r.metrics["slam_driving"], "ekf");
+  EXPECT_EQ(r.metrics["slam"]["ekf"]["role"], "drive");
+}
+
+}  // namespace
+}  // namespace conesim::sim
