@@ -27,7 +27,7 @@ struct MjcfOptions {
 };
 
 /// The MJCF of the car on an asphalt ground plane, with the settings measured in
-/// VEHICLE_NOTES.md: elliptic friction cones, solimp first value 0, sprung wheels (a slide joint
+/// docs/vehicle.md: elliptic friction cones, solimp first value 0, sprung wheels (a slide joint
 /// per corner, preloaded so the car rests at design ride height), ellipsoid tyres, front steering
 /// hinges with position servos, a motor per wheel, an IMU site with gyro and accelerometer, and
 /// joint position and velocity sensors. The body frame of the chassis sits at the rear axle

@@ -5,10 +5,10 @@
 // the lap-time bound all read these limits, so that they agree with each other and with the
 // MuJoCo car.
 //
-// Measured on the MuJoCo car (tests/vehicle_models/performance_slow_test.cpp, VEHICLE_NOTES of
-// the feasibility study): on a steady circle the car reaches about 0.95 of the friction its
-// tyres are given (tyre_friction 1.5 -> 1.43 g without aero), because the elliptic friction
-// cone is shared between the slip of the four tyres. kMeasuredGripShare holds that figure.
+// Measured on the MuJoCo car (tests/vehicle_models/performance_slow_test.cpp; docs/vehicle.md):
+// on a steady circle the car reaches about 0.95 of the friction its tyres are given
+// (tyre_friction 1.5 -> 1.43 g without aero), because the elliptic friction cone is shared
+// between the slip of the four tyres. kMeasuredGripShare holds that figure.
 
 #include "vehicle_models/vehicle_params.hpp"
 

@@ -22,7 +22,7 @@ namespace conesim::vehicle_models {
 ///   (FSG power limit 80 kW).
 /// - brakes 600 N m per wheel: enough to lock a loaded wheel; ABS limits the slip.
 /// - tyre friction 1.5: FS slicks on dry asphalt (1.4-1.6 g steady-state skidpad).
-/// - ClA 3.0 m^2 and CdA 1.3 m^2: full aero package figures of FS cars (VEHICLE_NOTES.md).
+/// - ClA 3.0 m^2 and CdA 1.3 m^2: full aero package figures of FS cars (docs/vehicle.md).
 struct VehicleParams {
   std::string name = "fs-electric-4wd";
 

@@ -96,7 +96,7 @@ CircleResult drive_circle(double r, double start_mps, double ramp_mps2) {
 }
 
 TEST(MeasuredGrip, SteadyCircleReachesTheEnvelopesLateralLimit) {
-  // measured: 0.983 of the envelope on the 9.125 m circle (1.55 g at 12.0 m/s, as VEHICLE_NOTES
+  // measured: 0.983 of the envelope on the 9.125 m circle (1.55 g at 12.0 m/s, as docs/vehicle.md
   // found) and 0.979 on the 20 m one (1.75 g at 18.6 m/s): the car reaches 0.93 of its tyre
   // friction where the envelope assumes kMeasuredGripShare 0.95, a 2 % difference that puts the
   // lap-time bound 1 % on the fast side (speed goes with the root of the grip).
