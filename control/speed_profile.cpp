@@ -11,8 +11,6 @@ namespace {
 constexpr double kMinCurvature = 1e-4;
 // a turn tighter than this share of the steering's limit is driven at the tight-turn speed
 constexpr double kTightTurnShare = 0.75;
-// a turn tighter than this share of the steering's limit is a minimum hairpin: full-lock speed
-constexpr double kFullLockShare = 0.9;
 // the longitudinal share never drops below this fraction of the limit, so that a car at the
 // lateral limit can still brake and speed up a little
 constexpr double kMinLongitudinalShare = 0.2;
@@ -46,9 +44,7 @@ double SpeedLimits::corner_speed_mps(double k) const {
   if (max_curvature > 0.0 && curvature >= kTightTurnShare * max_curvature) {
     SpeedLimits unlimited = *this;
     unlimited.max_curvature = 0.0;
-    const double cap = curvature >= kFullLockShare * max_curvature ? full_lock_speed_mps
-                                                                     : tight_turn_speed_mps;
-    return std::min(cap, unlimited.corner_speed_mps(k));
+    return std::min(tight_turn_speed_mps, unlimited.corner_speed_mps(k));
   }
   if (!envelope) return std::min(max_speed_mps, std::sqrt(max_lateral_accel_mps2 / curvature));
   // v^2 k = lateral(v): bisection, since lateral(v) / v^2 falls with speed

@@ -24,15 +24,12 @@ struct SpeedLimits {
   /// limit above.
   std::optional<vehicle_models::PerformanceEnvelope> envelope;
   /// Tightest curvature the car's steering gives (full lock, with its yaw loss), 1/m; 0: none.
-  /// Near it (3/4 of it) the car turns at tight_turn_speed_mps at most, where it still follows
-  /// its steering (the tyres fight and slide at full lock with any speed); at 9/10 of it, a
-  /// minimum hairpin, at full_lock_speed_mps, where the turn-in can be timed to the tenth of a
-  /// second. Measured on the generated hard profile (seeds 1-100, autocross and trackdrive):
-  /// 175/200 clean with both at 4 m/s, 193 with both at 3, 191 with these; on the public
-  /// layouts 41/46 with both at 3, 42 with these (EPFL VSV_XS kept clean).
+  /// Near it the car turns at tight_turn_speed_mps at most, where it still follows its steering
+  /// (the tyres fight and slide at full lock with any speed) and where the turn-in into a
+  /// minimum hairpin can be timed (measured on 100 generated hard-profile trackdrives: 24 with
+  /// cones hit at 4 m/s, 6 at 3 m/s).
   double max_curvature = 0.0;
-  double tight_turn_speed_mps = 4.0;
-  double full_lock_speed_mps = 3.0;
+  double tight_turn_speed_mps = 3.0;
 
   /// Lateral, forward and braking acceleration allowed at speed v, m/s^2.
   double lateral_mps2(double v) const;
