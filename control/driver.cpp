@@ -325,10 +325,11 @@ struct Driver::Impl {
       const bool fast = phase == Phase::kFast;
       const double preview_s = fast ? kFastSteerPreviewS : kSteerPreviewS;
       const double ahead = s_here + preview_s * std::max(0.0, est.speed_mps);
+      const std::vector<double> k = curvatures(path.points, path.closed);
       cmd.steer_rad = track_path(fast ? fast_tracker : tracker, est.pose, est.speed_mps, path, here,
-                                 curvature_at(s, ahead));
+                                 curvature_near(path, s, k, ahead, 2.0 * kCurvatureSpanM));
       // near full lock: the manoeuvre that keeps the footprint clearest, tried out
-      if (input && tight_ahead(s, s_here, est.speed_mps)) {
+      if (input && tight_ahead(s, k, s_here, est.speed_mps)) {
         const double reach = std::max(est.speed_mps, 8.0) * manoeuvre.horizon_s + 4.0;
         std::optional<Manoeuvre> previous;
         if (manoeuvre_now)
@@ -360,12 +361,12 @@ struct Driver::Impl {
   }
 
   // whether the path ahead (or the steering now) needs most of the steering's range
-  bool tight_ahead(const std::vector<double>& s, double s_here, double speed) const {
+  bool tight_ahead(const std::vector<double>& s, const std::vector<double>& k, double s_here,
+                   double speed) const {
     if (std::abs(steer_now) >= kManoeuvreSteerShare * vehicle.max_steer_rad &&
         speed <= kManoeuvreMaxSpeedMps)
       return true;
     const double limit = kManoeuvreCurvatureShare / full_lock_radius_m(vehicle);
-    const std::vector<double> k = curvatures(path.points, path.closed);
     const double lap = path.closed ? s.back() : 0.0;
     const double ahead = std::max(kManoeuvreAheadM, kManoeuvreAheadS * std::max(0.0, speed));
     for (size_t i = 0; i < k.size(); ++i) {
@@ -374,12 +375,6 @@ struct Driver::Impl {
       if (d >= -1.0 && d <= ahead && std::abs(k[i]) >= limit) return true;
     }
     return false;
-  }
-
-  // the path's curvature at arc length `at`, averaged over a short span (s: arc lengths)
-  double curvature_at(const std::vector<double>& s, double at) const {
-    return curvature_near(path, s, curvatures(path.points, path.closed), at,
-                          2.0 * kCurvatureSpanM);
   }
 
   // the profile speed a short preview ahead of s

@@ -9,6 +9,7 @@
 
 #include "control/drivability.hpp"
 #include "control/driver.hpp"
+#include "control/racing_line.hpp"
 #include "core/error.hpp"
 #include "laptime/qss.hpp"
 #include "sim/lap_time_report.hpp"
@@ -179,7 +180,8 @@ namespace {
 
 // acceleration: the braking zone against where the driver stops (it plans for FSG's zone: a
 // shorter one, which it cannot see the end of in time, is overrun)
-std::string acceleration_problem(const Scenario& s, const tracks::Track& track) {
+std::string acceleration_problem(const Scenario& s, const tracks::Track& track,
+                                 const control::VehicleGeometry& geometry) {
   if (track.timing_gates.size() < 2) return {};  // the FSG distances are assumed
   const core::Vec2 forward = track.start.heading();
   const tracks::Gate& start = track.timing_gates.front();
@@ -202,7 +204,6 @@ std::string acceleration_problem(const Scenario& s, const tracks::Track& track) 
   const laptime::SpeedTrace launch = laptime::standing_start(
       along, flat, vehicle_models::PerformanceEnvelope::of(s.vehicle, 1.0));
   const double v = std::min(s.driver.acceleration_speed_mps, launch.speed_mps.back());
-  const control::VehicleGeometry geometry = driver_vehicle(s.vehicle);
   const double stop_m = control::acceleration_stop_past_finish_m(s.driver, geometry, v);
   if (stop_m <= zone_m) return {};
   // the fastest crossing the driver stops from inside this zone (half a metre to spare)
@@ -228,19 +229,17 @@ std::string acceleration_problem(const Scenario& s, const tracks::Track& track) 
 
 std::string drivability_problem(const Scenario& s, const tracks::Track& track) {
   // a cone under the car where it starts is hit before it moves
-  const core::Pose2 rear_axle =
-      track.start.compose({-s.vehicle.front_overhang_from_rear_axle_m, 0.0, 0.0});
-  const double back = s.vehicle.length_m - s.vehicle.front_overhang_from_rear_axle_m;
+  const control::VehicleGeometry geometry = driver_vehicle(s.vehicle);
+  const control::Footprint car{geometry.rear_axle_to_front_m, geometry.rear_axle_to_back_m,
+                               0.5 * geometry.width_m, 0.0};
+  const core::Pose2 rear_axle = track.start.compose({-geometry.rear_axle_to_front_m, 0.0, 0.0});
   for (const tracks::Cone& c : track.cones) {
-    const core::Vec2 q = rear_axle.inverse_transform(c.position);
-    const double dx = std::max({-back - q.x(), 0.0, q.x() - s.vehicle.front_overhang_from_rear_axle_m});
-    const double dy = std::max(std::abs(q.y()) - 0.5 * s.vehicle.width_m, 0.0);
-    if (std::hypot(dx, dy) < 0.5 * core::cone_size(c.cls).base_m)
+    if (control::footprint_clearance(rear_axle, {{c.id, c.cls, c.position, Eigen::Matrix2d::Zero()}}, car) < 0.0)
       return "the " + std::string(core::to_string(c.cls)) + " cone at " +
              core::format_place(c.position) + " stands under the car where it starts (front wing at " +
              core::format_place(track.start.position()) + ")";
   }
-  if (s.event == core::EventType::kAcceleration) return acceleration_problem(s, track);
+  if (s.event == core::EventType::kAcceleration) return acceleration_problem(s, track, geometry);
   if (s.event != core::EventType::kAutocross && s.event != core::EventType::kTrackdrive) return {};
   // a car that starts off the track finds no path through the cones
   for (const tracks::Violation& v : tracks::check_rules(track, s.event))
@@ -250,7 +249,7 @@ std::string drivability_problem(const Scenario& s, const tracks::Track& track) {
     cones.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
   const control::Drivability d = control::check_drivability(
       track.lane_points(track.left_lane), track.lane_points(track.right_lane), track.centre_line,
-      track.closed, cones, driver_vehicle(s.vehicle));
+      track.closed, cones, geometry);
   return d.reason;
 }
 
