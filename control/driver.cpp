@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <optional>
 
 #include "control/drivability.hpp"
@@ -27,8 +28,11 @@ using core::VehicleCommand;
 
 // the car counts as stopped below this speed, m/s
 constexpr double kStoppedSpeedMps = 0.3;
-// the speed target is read this far ahead in time, to make up for the actuator lag, s
-constexpr double kSpeedPreviewS = 0.2;
+// the speed target is read this far ahead in time, to make up for the actuator lag, s.
+// Measured on the eleven competition circuits (ground truth, grip 0.7): 0.1 s with a speed gain
+// of 4/s puts the best lap 2-5 % closer to the lap-time bound than 0.2 s with 2/s (the car
+// braked a preview's distance early and answered its speed error slowly), with no cone hit
+constexpr double kSpeedPreviewS = 0.1;
 // on the circuits the envelope limits the speed profile; the command and braking are capped
 // only this high (the car limits itself), and the lateral acceleration this high, m/s^2
 constexpr double kCircuitLongitudinalCapMps2 = 15.0;
@@ -44,6 +48,16 @@ constexpr double kFastSteerPreviewS = 0.08;
 constexpr double kFastFrequencyPerM = 0.6;
 constexpr double kFastMaxFrequencyRps = 4.0;
 constexpr double kCurvatureSpanM = 1.0;
+// the car joins the racing line after lap 1 over this time at its speed (at least the
+// distance), metres and seconds, and follows the line itself this far past the join
+constexpr double kJoinMinM = 10.0;
+constexpr double kJoinS = 2.0;
+constexpr double kJoinPastM = 2.0;
+// the car switches to the racing line where its lap-1 path comes this close to it and this
+// nearly parallel, or after this distance at the latest, metres and radians
+constexpr double kJoinCloseM = 0.2;
+constexpr double kJoinHeadingRad = 0.1;
+constexpr double kJoinWaitM = 50.0;
 // the feed-forward acceleration is the profile's slope over this distance, metres
 constexpr double kFeedForwardSpanM = 1.0;
 // cones within this distance of the car feed the local planner, metres
@@ -184,6 +198,11 @@ struct Driver::Impl {
 
   // the path followed, its speed profile and the car's progress along it
   Path path;
+  // the fast laps' line, and the odometer reading up to which the car is still joining it
+  Path racing_line;
+  std::optional<double> join_until_m;
+  // the odometer reading when lap 1 ended, while the car has yet to reach the racing line
+  std::optional<double> join_pending_since_m;
   SpeedProfile profile;
   double lap_m = 0.0;
   size_t progress_segment = 0;
@@ -552,6 +571,13 @@ struct Driver::Impl {
         status.path = path.points;
       }
     }
+    if (phase == Phase::kExplore && join_pending_since_m) join_line(est);
+    // past the join: the racing line itself (the same points from there on)
+    if (join_until_m && status.odometer_m >= *join_until_m) {
+      join_until_m.reset();
+      path = racing_line;
+      status.path = path.points;
+    }
     const double cap = phase == Phase::kFast ? params.fast_speed_mps : params.explore_speed_mps;
     VehicleCommand cmd = follow(est, cap);
     if (phase == Phase::kBraking) {
@@ -591,11 +617,32 @@ struct Driver::Impl {
       circuit = Path{resample(lap, 1.0, true), true};
     }
     if (!circuit) return;  // keep exploring
-    path = fast_line(*circuit, est.map, start);
-    profile = plan_speed(path, limits(params.fast_speed_mps));
-    lap_m = path.length();
+    // the car goes on along its lap-1 path until it is near the racing line (see join_line)
+    racing_line = fast_line(*circuit, est.map, start);
+    join_pending_since_m = status.odometer_m;
+  }
+
+  // after lap 1 the car is on its lap-1 path, off the racing line: it switches to the line where
+  // the two meet (close and nearly parallel), or after kJoinWaitM at the latest, and joins it
+  // over a distance rather than steering onto it at once while it speeds up
+  void join_line(const core::Estimate& est) {
+    const PathProjection at =
+        project_onto(racing_line, est.pose.position(), 0, racing_line.segment_count());
+    const Vec2 along = racing_line.segment_end(at.segment) - racing_line.points[at.segment];
+    const double heading_error =
+        std::remainder(est.pose.yaw - std::atan2(along.y(), along.x()), 2.0 * std::numbers::pi);
+    const bool meet = at.distance_m <= kJoinCloseM && std::abs(heading_error) <= kJoinHeadingRad;
+    if (!meet && status.odometer_m - *join_pending_since_m < kJoinWaitM) return;
+    join_pending_since_m.reset();
+    const double join_m = std::max(kJoinMinM, kJoinS * std::max(0.0, est.speed_mps));
+    path = join_from(racing_line, est.pose.position(), at, join_m);
+    join_until_m = status.odometer_m + join_m + kJoinPastM;
+    // the speed profile is the line's (the join curves the path by a few thousandths of 1/m
+    // ahead of the car, and more behind it, where the car will not be before the join ends)
+    profile = plan_speed(racing_line, limits(params.fast_speed_mps));
+    lap_m = racing_line.length();
     track_progress = true;
-    progress_segment = project_onto(path, est.pose.position(), 0, path.segment_count()).segment;
+    progress_segment = at.segment;
     status.path = path.points;
     phase = Phase::kFast;
   }

@@ -50,8 +50,11 @@ struct DriverParams {
   double assumed_half_width_m = 1.6;
   /// Acceleration requested on the acceleration straight (full power: the car limits it), m/s^2.
   double launch_accel_mps2 = 15.0;
-  /// Gain of the speed controller: m/s^2 per m/s of speed error.
-  double speed_gain_per_s = 2.0;
+  /// Gain of the speed controller: m/s^2 per m/s of speed error (on top of the profile's slope
+  /// as feed-forward). The MuJoCo car reaches only about 0.7-0.8 of a commanded acceleration out
+  /// of a turn (traction control, the front tyres' drag at an angle), so the feedback has to
+  /// make up the rest quickly.
+  double speed_gain_per_s = 4.0;
 
   /// Empty when usable, otherwise "key: what was expected".
   std::string validate() const;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 namespace conesim::control {
 
@@ -58,6 +59,35 @@ PathProjection project_onto(const Path& path, const Vec2& p, size_t first, size_
     if (d < best.distance_m) best = {i, t, q, d};
   }
   return best;
+}
+
+Path join_from(const Path& path, const Vec2& from, const PathProjection& at, double length_m) {
+  Path joined = path;
+  const size_t n = path.points.size();
+  if (n < 2 || length_m <= 0.0) return joined;
+  const Vec2 offset = from - at.point;
+  // behind the projection the offset fades in over a few metres as well, so that the car is on
+  // the joined path (the segment it is on moves with it) and the path has no step behind it
+  constexpr double kBehindM = 8.0;
+  double back = (at.point - path.points[at.segment]).norm();
+  for (size_t k = 0; k < n && back < kBehindM; ++k) {
+    if (!path.closed && k > at.segment) break;
+    const size_t j = (at.segment + n - k) % n;
+    const double share = 0.5 * (1.0 + std::cos(std::numbers::pi * back / kBehindM));
+    joined.points[j] = path.points[j] + share * offset;
+    back += (path.points[j] - path.points[(j + n - 1) % n]).norm();
+  }
+  // from the projection forwards: distance along the path, and the share of the offset there
+  double d = (path.segment_end(at.segment) - at.point).norm();
+  for (size_t k = 1; k < n && d < length_m; ++k) {
+    const size_t i = at.segment + k;
+    if (!path.closed && i >= n) break;
+    const size_t j = i % n;
+    const double share = 0.5 * (1.0 + std::cos(std::numbers::pi * d / length_m));
+    joined.points[j] = path.points[j] + share * offset;
+    d += (path.points[(j + 1) % n] - path.points[j]).norm();
+  }
+  return joined;
 }
 
 std::vector<Vec2> resample(const std::vector<Vec2>& points, double spacing_m, bool closed) {

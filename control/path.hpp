@@ -41,6 +41,15 @@ struct PathProjection {
 /// path, clipped at the end of an open one). Pass count = segment_count() for a global search.
 PathProjection project_onto(const Path& path, const Vec2& p, size_t first, size_t count);
 
+/// A path that a car at `from` (projecting onto `path` at `at`) joins smoothly: the points within
+/// `length_m` ahead of the projection are moved by the car's offset from the path, in full at the
+/// projection and fading to none at length_m along a half cosine (no kink at either end); behind
+/// the projection the offset fades in the same way over 8 m, so that the car is on the joined
+/// path. Its curvature differs from the path's by about offset * (pi / length)^2 / 2.
+/// The points keep their indices, so that beyond length_m the two paths are the same and a
+/// follower can switch back without a jump.
+Path join_from(const Path& path, const Vec2& from, const PathProjection& at, double length_m);
+
 /// The polyline resampled every spacing_m (the last step of an open path may be shorter).
 std::vector<Vec2> resample(const std::vector<Vec2>& points, double spacing_m, bool closed);
 

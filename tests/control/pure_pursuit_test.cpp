@@ -5,6 +5,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "test_tracks.hpp"
 #include "vehicle_models/kinematics.hpp"
 
 namespace conesim::control {
@@ -15,16 +16,8 @@ using core::Pose2;
 constexpr double kPi = std::numbers::pi;
 constexpr double kWheelbaseM = 1.53;
 
-// a counter-clockwise circle about the origin, points every spacing_m
 Path circle(double radius, double spacing_m) {
-  Path path;
-  path.closed = true;
-  const int n = static_cast<int>(std::ceil(2.0 * kPi * radius / spacing_m));
-  for (int i = 0; i < n; ++i) {
-    const double phi = -0.5 * kPi + 2.0 * kPi * i / n;
-    path.points.push_back(radius * Vec2(std::cos(phi), std::sin(phi)));
-  }
-  return path;
+  return testing::circle_path(radius, spacing_m);
 }
 
 TEST(PurePursuit, OnTheCircleSteersItsCurvature) {

@@ -12,6 +12,19 @@
 
 namespace conesim::control::testing {
 
+/// A closed counter-clockwise circle about the origin starting at its bottom, points about
+/// every spacing_m.
+inline Path circle_path(double radius, double spacing_m) {
+  Path path;
+  path.closed = true;
+  const int n = static_cast<int>(std::ceil(2.0 * std::numbers::pi * radius / spacing_m));
+  for (int i = 0; i < n; ++i) {
+    const double phi = -0.5 * std::numbers::pi + 2.0 * std::numbers::pi * i / n;
+    path.points.push_back(radius * core::Vec2(std::cos(phi), std::sin(phi)));
+  }
+  return path;
+}
+
 /// A centre line drawn piece by piece with a pen that has a position and a heading.
 class CentreLine {
  public:
