@@ -1,5 +1,5 @@
 #pragma once
-// Scoring against ground truth: one-to-one matching (Hungarian), rigid 2D alignment, and the
+// Scoring against ground truth: one-to-one matching (core/assignment.hpp), rigid 2D alignment, and the
 // perception scorer (recall, precision, colour and position error per range band).
 
 #include <Eigen/Core>
@@ -7,19 +7,14 @@
 #include <nlohmann/json.hpp>
 #include <vector>
 
+#include "core/assignment.hpp"
 #include "core/autonomy_types.hpp"
 #include "core/cone.hpp"
 #include "core/geometry.hpp"
 
 namespace conesim::sim {
 
-/// The optimal one-to-one assignment of rows to columns of `cost` (any shape). Pairs whose cost
-/// exceeds `cutoff` (or is NaN or infinite) are never assigned. Among the assignments that pair as
-/// many rows as the cut-off allows, returns the one of least total cost: the matching is maximal
-/// first and cheapest second, so a far-but-allowed pair is never dropped to save cost. Returns for
-/// each row its column, or -1. Deterministic; O(n^3) on each group of rows and columns linked by
-/// allowed pairs, so sparse problems (a map against its true cones at a 1 m cut-off) are fast.
-std::vector<int> hungarian_assign(const Eigen::MatrixXd& cost, double cutoff);
+using core::hungarian_assign;
 
 /// Points `a` matched one to one to points `b` within `cutoff_m` by hungarian_assign on their
 /// distances: for each point of `a` the index of its point of `b`, or -1.

@@ -473,7 +473,7 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
                         number("gate_chi2", ekf.association.gate_chi2, e),
                         number("joint_probability", ekf.association.joint_probability, e),
                         number("nn_radius_m", ekf.association.nn_radius_m, e),
-               number("track_gate_chi2", ekf.association.track_gate_chi2, e)});
+                        number("track_memory_frames", ekf.association.track_memory_frames, e)});
         }},
        {"graph", [&](const YAML::Node& v) {
           const Where g{&context, "slam.graph"};
@@ -482,7 +482,7 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
                         integer("window_poses", graph.window_poses, g),
                         number("icr_sigma_m", graph.icr_sigma_m, g),
                         number("gate_chi2", graph.association.gate_chi2, g),
-               number("track_gate_chi2", graph.association.track_gate_chi2, g),
+                        number("track_memory_frames", graph.association.track_memory_frames, g),
                         {"localise_after_loop_closure", [&](const YAML::Node& x) {
                            graph.localise_after_loop_closure =
                                read_bool(x, g, "localise_after_loop_closure");
@@ -850,8 +850,8 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
     context.fail_check("slam.graph", e.starts_with("graph_slam.") ? e.substr(11) : e);
   if (!(s.slam_settings.graph.association.gate_chi2 > 0.0))
     context.fail("slam.graph.gate_chi2", "expected a chi-square gate > 0");
-  if (!(s.slam_settings.graph.association.track_gate_chi2 > 0.0))
-    context.fail("slam.graph.track_gate_chi2", "expected a chi-square gate > 0");
+  if (!(s.slam_settings.graph.association.track_memory_frames >= 1.0))
+    context.fail("slam.graph.track_memory_frames", "expected >= 1 frame");
   if (s.slam != "none" && s.perception == "ground_truth")
     context.fail("slam",
                  "SLAM needs observations with noise: set perception to "

@@ -191,7 +191,8 @@ double joint_mahalanobis2(const AssociationProblem& problem,
   return v.dot(s.ldlt().solve(v));
 }
 
-std::vector<int> associate(const AssociationParams& params, const AssociationProblem& p) {
+std::vector<int> associate(const AssociationParams& params, const AssociationProblem& p,
+                           const TrackBindings* tracks, std::vector<int>* evidence) {
   const int n = p.observations();
   std::vector<int> pairing_of(n, -1);
   std::vector<char> taken(p.candidates(), 0);
@@ -235,18 +236,22 @@ std::vector<int> associate(const AssociationParams& params, const AssociationPro
       return pairing_of;
     }
     case AssociationMethod::kTrackingAided: {
-      // the track's pairing first, within the looser gate; then the likeliest of the rest
-      std::vector<Pairing> loose = compatible_pairings(p, params.track_gate_chi2);
-      std::vector<Pairing> tracked, rest;
-      for (const Pairing& q : loose) {
-        const int track = p.observation_track(q.observation);
-        if (track >= 0 && track == p.candidate_track(q.candidate)) tracked.push_back(q);
-        if (q.d2 < params.gate_chi2) rest.push_back(q);
+      // the frame's own evidence: maximum likelihood without the tracks
+      std::vector<Pairing> ic = compatible_pairings(p, params.gate_chi2);
+      std::sort(ic.begin(), ic.end(), by_cost);
+      if (evidence) {
+        evidence->assign(n, -1);
+        std::vector<char> evidence_taken(p.candidates(), 0);
+        greedy(ic, *evidence, evidence_taken);
       }
-      std::sort(tracked.begin(), tracked.end(), by_cost);
-      std::sort(rest.begin(), rest.end(), by_cost);
-      greedy(tracked, pairing_of, taken);
-      greedy(rest, pairing_of, taken);
+      // then the same with each pairing's cost less its track's prior
+      if (tracks) {
+        for (Pairing& q : ic)
+          q.cost -= tracks->bonus(p.observation_track(q.observation),
+                                  p.candidate_landmark(q.candidate));
+        std::sort(ic.begin(), ic.end(), by_cost);
+      }
+      greedy(ic, pairing_of, taken);
       return pairing_of;
     }
     case AssociationMethod::kScnn: {

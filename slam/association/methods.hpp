@@ -13,6 +13,7 @@
 #include "core/autonomy_types.hpp"
 #include "core/cone.hpp"
 #include "core/geometry.hpp"
+#include "slam/association/track_bindings.hpp"
 
 namespace conesim::slam {
 
@@ -27,8 +28,9 @@ enum class AssociationMethod {
   kScnn,
   /// Joint compatibility branch and bound over the joint innovation covariance.
   kJcbb,
-  /// Perception's track ids first (a landmark remembers the track it was last matched with),
-  /// then maximum likelihood for the rest (the FST thesis).
+  /// Maximum likelihood with the perception's tracks as a prior (the FST thesis's idea): an
+  /// observation's track makes the landmarks the track's earlier frames pointed at likelier
+  /// (TrackBindings), within the same individual-compatibility gate.
   kTrackingAided,
   /// From the ground-truth labels: an observation pairs with the landmark first made from the
   /// same true cone. For ablation only (what the others lose to wrong pairings); flagged in
@@ -53,8 +55,8 @@ struct AssociationParams {
   double joint_probability = 0.99;
   /// Nearest neighbour's radius, m.
   double nn_radius_m = 1.0;
-  /// Tracking-aided's looser gate for a pairing its track id supports.
-  double track_gate_chi2 = 25.0;
+  /// Tracking-aided: frames over which a track's evidence fades (TrackBindings).
+  double track_memory_frames = 10.0;
   /// JCBB stops after this many nodes of the interpretation tree (the best found so far wins).
   int jcbb_max_nodes = 20000;
 };
@@ -78,17 +80,22 @@ class AssociationProblem {
   virtual core::Vec2 candidate_position(int candidate) const = 0;
   /// False when the pairing is ruled out (class, already excluded).
   virtual bool allowed(int observation, int candidate) const = 0;
-  /// Perception's track id of an observation and the one a candidate carries (-1: none).
+  /// Perception's track id of an observation (-1: none) and a candidate's landmark id.
   virtual int observation_track(int observation) const = 0;
-  virtual int candidate_track(int candidate) const = 0;
+  virtual int candidate_landmark(int candidate) const = 0;
   /// The true cone of an observation and of a candidate landmark (ideal association only;
   /// -1: unknown or clutter).
   virtual int observation_label(int) const { return -1; }
   virtual int candidate_label(int) const { return -1; }
 };
 
-/// The pairing of each observation: a candidate index, or -1.
-std::vector<int> associate(const AssociationParams& params, const AssociationProblem& problem);
+/// The pairing of each observation: a candidate index, or -1. Tracking-aided association takes
+/// the tracks' memory (none: plain maximum likelihood) and writes the frame's own evidence for
+/// it to `evidence` (the maximum-likelihood pairing without the tracks, a candidate index or -1
+/// per observation) when given; the back-end records it once it knows its new landmarks.
+std::vector<int> associate(const AssociationParams& params, const AssociationProblem& problem,
+                           const TrackBindings* tracks = nullptr,
+                           std::vector<int>* evidence = nullptr);
 
 /// The chi-square quantile of probability p for k degrees of freedom (Wilson-Hilferty, within
 /// 1 % of the exact value for k >= 2 at p = 0.99).

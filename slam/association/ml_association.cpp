@@ -108,7 +108,8 @@ double mahalanobis2(const core::Pose2& pose, const Eigen::Matrix3d* pose_covaria
 std::vector<Association> associate(const AssociationConfig& config, const core::Pose2& pose,
                                    const Eigen::Matrix3d* pose_covariance,
                                    const std::vector<LandmarkCandidate>& candidates,
-                                   const core::ConeObservations& observations, bool allow_new) {
+                                   const core::ConeObservations& observations, bool allow_new,
+                                   const TrackBindings* tracks, std::vector<int>* evidence) {
   const int n_obs = static_cast<int>(observations.cones.size());
   const int n_cand = static_cast<int>(candidates.size());
   std::vector<Association> out(n_obs);
@@ -118,7 +119,6 @@ std::vector<Association> associate(const AssociationConfig& config, const core::
 
   // every gated pairing, with its negative log-likelihood as the cost
   std::vector<Pairing> pairings;
-  std::vector<Pairing> tracked;
   for (int i = 0; i < n_obs; ++i) {
     const core::ConeObservation& obs = observations.cones[i];
     const core::Vec2 obs_map = pose.transform(obs.position);
@@ -136,11 +136,6 @@ std::vector<Association> associate(const AssociationConfig& config, const core::
       Pairing pairing{
           cost, i, j, lm.position - obs_map, lm.drift_variance_m2 > config.old_drift_variance_m2,
           false};
-      // tracking-aided: the same perception track, within the loose gate
-      if (config.use_track_ids && obs.track_id >= 0 && obs.track_id == lm.track_id &&
-          d2 < config.track_gate_chi2) {
-        tracked.push_back(pairing);
-      }
       if (d2 >= config.gate_chi2) continue;
       // old landmarks: also whether the pairing passes without the drift allowance
       if (pairing.old) {
@@ -163,17 +158,35 @@ std::vector<Association> associate(const AssociationConfig& config, const core::
   }
   pairings = std::move(kept);
 
-  // greedy with mutual exclusion: tracked pairings first, then the likeliest of the rest
+  // greedy with mutual exclusion, likeliest first: the frame's own evidence, then with each
+  // pairing's cost less its track's prior (tracking-aided)
   const auto by_cost = [](const Pairing& a, const Pairing& b) { return a.cost < b.cost; };
-  std::sort(tracked.begin(), tracked.end(), by_cost);
-  std::sort(pairings.begin(), pairings.end(), by_cost);
-  for (const std::vector<Pairing>* list : {&tracked, &pairings}) {
-    for (const Pairing& p : *list) {
-      if (out[p.observation].kind == Association::Kind::kMatched || taken[p.candidate]) continue;
-      out[p.observation] = {candidates[p.candidate].id, Association::Kind::kMatched};
+  std::stable_sort(pairings.begin(), pairings.end(), by_cost);
+  const auto greedy = [&](std::vector<int>& pairing_of) {
+    pairing_of.assign(n_obs, -1);
+    std::fill(taken.begin(), taken.end(), false);
+    for (const Pairing& p : pairings) {
+      if (pairing_of[p.observation] >= 0 || taken[p.candidate]) continue;
+      pairing_of[p.observation] = p.candidate;
       taken[p.candidate] = true;
     }
+  };
+  std::vector<int> pairing_of;
+  if (evidence) {
+    greedy(pairing_of);
+    evidence->assign(n_obs, -1);
+    for (int i = 0; i < n_obs; ++i)
+      if (pairing_of[i] >= 0) (*evidence)[i] = candidates[pairing_of[i]].id;
   }
+  if (config.use_track_ids && tracks) {
+    for (Pairing& p : pairings)
+      p.cost -= tracks->bonus(observations.cones[p.observation].track_id,
+                              candidates[p.candidate].id);
+    std::stable_sort(pairings.begin(), pairings.end(), by_cost);
+  }
+  greedy(pairing_of);
+  for (int i = 0; i < n_obs; ++i)
+    if (pairing_of[i] >= 0) out[i] = {candidates[pairing_of[i]].id, Association::Kind::kMatched};
 
   // the rest: new when far from everything, else rejected
   for (int i = 0; i < n_obs; ++i) {
@@ -229,7 +242,7 @@ class MarginalProblem : public AssociationProblem {
                             config_.class_vote_margin);
   }
   int observation_track(int i) const override { return observations_.cones[i].track_id; }
-  int candidate_track(int j) const override { return candidates_[j].track_id; }
+  int candidate_landmark(int j) const override { return candidates_[j].id; }
   int observation_label(int i) const override {
     return labels_ && i < static_cast<int>(labels_->size()) ? (*labels_)[i] : -1;
   }
@@ -252,9 +265,13 @@ class MarginalProblem : public AssociationProblem {
 std::vector<Association> associate_with_method(
     const AssociationParams& params, const AssociationConfig& config, const core::Pose2& pose,
     const Eigen::Matrix3d* pose_covariance, const std::vector<LandmarkCandidate>& candidates,
-    const core::ConeObservations& observations, bool allow_new, const std::vector<int>* labels) {
+    const core::ConeObservations& observations, bool allow_new, const std::vector<int>* labels,
+    const TrackBindings* tracks, std::vector<int>* evidence) {
   const MarginalProblem problem(config, pose, pose_covariance, candidates, observations, labels);
-  const std::vector<int> pairing = associate(params, problem);
+  const std::vector<int> pairing = associate(params, problem, tracks, evidence);
+  if (evidence)
+    for (int& e : *evidence)
+      if (e >= 0) e = candidates[e].id;
   const int n_obs = problem.observations();
   std::vector<Association> out(n_obs);
   for (int i = 0; i < n_obs; ++i) {

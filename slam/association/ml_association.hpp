@@ -1,7 +1,7 @@
 #pragma once
 // Data association: maximum likelihood with an individual-compatibility chi-square gate, one
-// landmark per observation, class compatibility, and the tracking-aided variant of the FST
-// Lisboa thesis (a landmark remembers the perception track id it was last matched with).
+// landmark per observation, class compatibility, and the tracking-aided variant after the FST
+// Lisboa thesis (the perception's tracks as a prior, slam/association/track_bindings.hpp).
 
 #include <Eigen/Core>
 #include <array>
@@ -25,10 +25,10 @@ struct AssociationConfig {
   double new_landmark_chi2 = 40.0;
   /// And it must be at least this far (Euclidean) from every landmark to start a new one, m.
   double new_landmark_min_distance_m = 1.0;
-  /// Use perception's track ids: an observation whose track id a nearby landmark carries is
-  /// matched to it first when it passes this looser gate.
+  /// Use perception's track ids: the landmarks an observation's track pointed at in earlier
+  /// frames are likelier for it (TrackBindings), over this many frames of memory.
   bool use_track_ids = true;
-  double track_gate_chi2 = 25.0;
+  double track_memory_frames = 10.0;
   /// A landmark's class is trusted for the class test once its votes lead by this many.
   int class_vote_margin = 2;
   /// Returning to old landmarks (drift variance above old_drift_variance_m2), the loose gate
@@ -48,8 +48,6 @@ struct LandmarkCandidate {
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity();
   /// Class votes per core::ConeClass (kUnknown's entry unused).
   std::array<int, 5> class_votes{};
-  /// Perception track id it was last matched with, -1 when none.
-  int track_id = -1;
   /// The true cone it was made from (ideal association only), -1 otherwise.
   int label = -1;
   /// Extra isotropic position variance for drift since it was last seen (loop closure), m^2.
@@ -75,14 +73,17 @@ double mahalanobis2(const core::Pose2& pose, const Eigen::Matrix3d* pose_covaria
                     const LandmarkCandidate& landmark, const core::ConeObservation& observation);
 
 /// Associates every observation of a batch with at most one candidate and every candidate with
-/// at most one observation: tracking-aided matches first, then greedy by likelihood (smallest
-/// Mahalanobis plus log-determinant), old landmarks only along the consensus drift offset.
-/// Unmatched observations are new when far from every candidate, else rejected; when
-/// `allow_new` is false they are all rejected.
+/// at most one observation: greedy by likelihood (smallest Mahalanobis plus log-determinant,
+/// less the track's prior when `tracks` is given and config.use_track_ids), old landmarks only
+/// along the consensus drift offset. Unmatched observations are new when far from every
+/// candidate, else rejected; when `allow_new` is false they are all rejected. `evidence`, when
+/// given, gets the landmark id each observation pairs with without the tracks (-1: none).
 std::vector<Association> associate(const AssociationConfig& config, const core::Pose2& pose,
                                    const Eigen::Matrix3d* pose_covariance,
                                    const std::vector<LandmarkCandidate>& candidates,
-                                   const core::ConeObservations& observations, bool allow_new);
+                                   const core::ConeObservations& observations, bool allow_new,
+                                   const TrackBindings* tracks = nullptr,
+                                   std::vector<int>* evidence = nullptr);
 
 /// The same with one of the injectable methods (slam/association/methods.hpp) on the
 /// candidates' marginal covariances (drift allowance included): the pairings of two
@@ -93,6 +94,7 @@ std::vector<Association> associate_with_method(
     const AssociationParams& params, const AssociationConfig& config, const core::Pose2& pose,
     const Eigen::Matrix3d* pose_covariance, const std::vector<LandmarkCandidate>& candidates,
     const core::ConeObservations& observations, bool allow_new,
-    const std::vector<int>* labels = nullptr);
+    const std::vector<int>* labels = nullptr, const TrackBindings* tracks = nullptr,
+    std::vector<int>* evidence = nullptr);
 
 }  // namespace conesim::slam

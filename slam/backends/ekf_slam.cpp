@@ -40,7 +40,8 @@ std::string EkfSlamConfig::validate() const {
   if (!(association.joint_probability > 0.5 && association.joint_probability < 1.0))
     return "association.joint_probability: expected a probability in (0.5, 1)";
   if (!(association.nn_radius_m > 0.0)) return "association.nn_radius_m: expected > 0 m";
-  if (!(association.track_gate_chi2 > 0.0)) return "association.track_gate_chi2: expected > 0";
+  if (!(association.track_memory_frames >= 1.0))
+    return "association.track_memory_frames: expected >= 1 frame";
   return {};
 }
 
@@ -75,6 +76,7 @@ void EkfSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
   fixed_covariance_.clear();
   fixed_position_.clear();
   associations_.clear();
+  track_bindings_ = TrackBindings(config_.association.track_memory_frames);
   next_id_ = 0;
   phase_ = core::SlamPhase::kMapping;
   map_complete_ = false;
@@ -142,7 +144,7 @@ class EkfProblem : public AssociationProblem {
     Eigen::Matrix<double, 2, 3> h_pose = Eigen::Matrix<double, 2, 3>::Zero();
     Eigen::Matrix2d h_landmark = Eigen::Matrix2d::Zero();
     std::array<int, 5> votes{};
-    int track = -1;
+    int id = 0;  // the landmark's id
     int label = -1;
     // an old landmark of the start, a candidate only for closing the loop (with big orange
     // cones at the start, only big orange cones may pair with it)
@@ -196,7 +198,7 @@ class EkfProblem : public AssociationProblem {
     return class_compatible(cls, c.votes, margin_);
   }
   int observation_track(int i) const override { return obs_.cones[i].track_id; }
-  int candidate_track(int j) const override { return cand_[j].track; }
+  int candidate_landmark(int j) const override { return cand_[j].id; }
   int observation_label(int i) const override {
     return i < static_cast<int>(labels_.size()) ? labels_[i] : -1;
   }
@@ -267,7 +269,7 @@ void EkfSlam::process(const SlamInput& input) {
     c.position = position;
     c.fixed_cov = localising ? fixed_covariance_[lm.index] : Eigen::Matrix2d::Zero();
     c.votes = lm.class_votes;
-    c.track = lm.track_id;
+    c.id = lm.id;
     c.label = lm.label;
     c.start_only = !loop_open_ && !recent;
     candidates.push_back(c);
@@ -275,7 +277,11 @@ void EkfSlam::process(const SlamInput& input) {
   const EkfProblem problem(now, p_, obs, std::move(candidates), config_.class_vote_margin, usable,
                            big_orange_closure, labels_);
   const auto start = std::chrono::steady_clock::now();
-  const std::vector<int> pairing = associate(config_.association, problem);
+  const bool tracking = config_.association.method == AssociationMethod::kTrackingAided;
+  std::vector<int> evidence;
+  const std::vector<int> pairing = associate(config_.association, problem,
+                                             tracking ? &track_bindings_ : nullptr,
+                                             tracking ? &evidence : nullptr);
   association_us_ =
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
 
@@ -299,7 +305,6 @@ void EkfSlam::process(const SlamInput& input) {
     lm.last_seen_travel_m = travel_m_;
     if (obs.cones[i].cls != core::ConeClass::kUnknown)
       ++lm.class_votes[static_cast<int>(obs.cones[i].cls)];
-    if (obs.cones[i].track_id >= 0) lm.track_id = obs.cones[i].track_id;
   }
   if (closing) {
     // back at the start: every landmark may be associated again
@@ -309,6 +314,19 @@ void EkfSlam::process(const SlamInput& input) {
   }
   update(obs, pairs, localising);
   if (!localising) handle_unmatched(obs);
+  if (tracking) {
+    // each track's evidence: the landmark its observation paired with without the tracks, or
+    // for one the association left unpaired the preliminary landmark it started or was seen as
+    std::vector<int> tracks(n_obs);
+    for (int i = 0; i < n_obs; ++i) {
+      tracks[i] = obs.cones[i].track_id;
+      if (evidence[i] >= 0)
+        evidence[i] = problem.candidate(evidence[i]).id;
+      else if (pairing[i] < 0 && associations_[i].kind != Association::Kind::kRejected)
+        evidence[i] = associations_[i].landmark_id;
+    }
+    track_bindings_.record(tracks, evidence);
+  }
   for (int i = 0; i < n_obs; ++i)
     if (!usable[i]) associations_[i] = {};
 
@@ -391,7 +409,6 @@ void EkfSlam::add_landmark(const core::ConeObservation& o, int id, int label) {
   lm.id = id;
   lm.index = n;
   if (o.cls != core::ConeClass::kUnknown) lm.class_votes[static_cast<int>(o.cls)] = 1;
-  lm.track_id = o.track_id;
   lm.label = label;
   lm.first_travel_m = travel_m_;
   lm.last_seen_travel_m = travel_m_;
@@ -451,7 +468,6 @@ void EkfSlam::handle_unmatched(const core::ConeObservations& obs) {
       if (o.cls != core::ConeClass::kUnknown) p.class_votes[static_cast<int>(o.cls)] = 1;
       p.sightings = 1;
       p.first_travel_m = travel_m_;
-      p.track_id = o.track_id;
       p.label = label_of(i);
       preliminary_.push_back(p);
       seen_now.push_back(1);

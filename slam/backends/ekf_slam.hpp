@@ -94,7 +94,6 @@ class EkfSlam : public Backend {
     int id = 0;
     int index = 0;  // first row of the landmark in the state
     std::array<int, 5> class_votes{};
-    int track_id = -1;
     int label = -1;  // the true cone it was made from (ideal association only)
     double first_travel_m = 0.0;
     double last_seen_travel_m = 0.0;
@@ -106,7 +105,6 @@ class EkfSlam : public Backend {
     std::array<int, 5> class_votes{};
     int sightings = 0;
     double first_travel_m = 0.0;
-    int track_id = -1;
     int label = -1;
   };
 
@@ -136,6 +134,8 @@ class EkfSlam : public Backend {
   std::vector<Eigen::Matrix2d> fixed_covariance_;
   std::vector<core::Vec2> fixed_position_;
   std::vector<Association> associations_;
+  // tracking-aided association: the perception tracks' evidence
+  TrackBindings track_bindings_;
   std::vector<int> labels_;
   int next_id_ = 0;
   core::SlamPhase phase_ = core::SlamPhase::kMapping;

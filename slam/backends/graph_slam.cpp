@@ -74,6 +74,7 @@ void GraphSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
   landmarks_.clear();
   edges_.clear();
   associations_.clear();
+  track_bindings_ = TrackBindings(config_.association.track_memory_frames);
   PoseNode start;
   start.stamp = stamp;
   start.x = {initial_pose.x, initial_pose.y, initial_pose.yaw};
@@ -113,6 +114,7 @@ void GraphSlam::process(const SlamInput& input) {
   labels_ = input.true_ids;
   associate_batch(input.observations);
   update(input.observations);
+  record_tracks(input.observations);
   if (phase_ == core::SlamPhase::kLocalisation) {
     localise();
     return;
@@ -173,7 +175,6 @@ std::vector<LandmarkCandidate> GraphSlam::candidates(double farthest_observation
     c.position = lm.position();
     c.covariance = lm.covariance;
     c.class_votes = lm.class_votes;
-    c.track_id = lm.track_id;
     c.label = lm.label;
     if (!localising) {
       c.drift_variance_m2 =
@@ -216,12 +217,19 @@ void GraphSlam::associate_batch(const core::ConeObservations& observations) {
   const std::vector<LandmarkCandidate> in_reach = candidates(farthest_m);
   const auto start = std::chrono::steady_clock::now();
   const bool allow_new = phase_ == core::SlamPhase::kMapping;
+  const bool tracking = config_.method
+                            ? config_.method->method == AssociationMethod::kTrackingAided
+                            : config_.association.use_track_ids;
+  const TrackBindings* tracks = tracking ? &track_bindings_ : nullptr;
+  std::vector<int>* evidence = tracking ? &evidence_ : nullptr;
+  evidence_.clear();
   associations_ =
       config_.method
           ? associate_with_method(*config_.method, config_.association, poses_.back().pose(),
-                                  &pose_covariance_, in_reach, observations, allow_new, &labels_)
+                                  &pose_covariance_, in_reach, observations, allow_new, &labels_,
+                                  tracks, evidence)
           : associate(config_.association, poses_.back().pose(), &pose_covariance_, in_reach,
-                      observations, allow_new);
+                      observations, allow_new, tracks, evidence);
   association_us_ =
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
 }
@@ -278,7 +286,6 @@ void GraphSlam::update(const core::ConeObservations& observations) {
     ++lm.sightings;
     lm.last_seen_travel_m = travel_m_;
     if (obs.cls != core::ConeClass::kUnknown) ++lm.class_votes[static_cast<int>(obs.cls)];
-    if (obs.track_id >= 0) lm.track_id = obs.track_id;
     if (lm.sightings >= config_.confirm_sightings) lm.confirmed = true;
     if (mapping) {
       add_observation_edge(pose_index, lm.id, obs);
@@ -290,6 +297,19 @@ void GraphSlam::update(const core::ConeObservations& observations) {
     }
   }
   pose_covariance_ = pose_information.inverse();
+}
+
+void GraphSlam::record_tracks(const core::ConeObservations& observations) {
+  // tracking-aided: each track's evidence is the landmark its observation paired with without
+  // the tracks, or the landmark it started
+  if (evidence_.size() != observations.cones.size()) return;
+  std::vector<int> tracks(observations.cones.size());
+  for (size_t i = 0; i < tracks.size(); ++i) {
+    tracks[i] = observations.cones[i].track_id;
+    if (evidence_[i] < 0 && associations_[i].kind == Association::Kind::kNew)
+      evidence_[i] = associations_[i].landmark_id;
+  }
+  track_bindings_.record(tracks, evidence_);
 }
 
 void GraphSlam::fold_edges_before(int first) {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "slam/association/ml_association.hpp"
+#include "slam/association/track_bindings.hpp"
 #include "slam/backend.hpp"
 #include "slam/loop_closure.hpp"
 
@@ -28,7 +29,8 @@ namespace conesim::slam {
 struct GraphSlamConfig {
   AssociationConfig association;
   /// One of the injectable methods (nn, scnn, jcbb) instead of the built-in ML+IC with the
-  /// drift consensus (tracking-aided when association.use_track_ids); unset: the built-in.
+  /// drift consensus (tracking-aided when association.use_track_ids and the observations carry
+  /// track ids); unset: the built-in.
   std::optional<AssociationParams> method;
   LoopClosureConfig loop_closure;
 
@@ -129,7 +131,6 @@ class GraphSlam : public Backend {
     std::array<double, 2> x{};
     Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity();
     std::array<int, 5> class_votes{};
-    int track_id = -1;
     /// The true cone it was made from (ideal association only).
     int label = -1;
     int sightings = 0;
@@ -166,6 +167,7 @@ class GraphSlam : public Backend {
   void predict(const OdometryDelta& odometry);
   void associate_batch(const core::ConeObservations& observations);
   void update(const core::ConeObservations& observations);
+  void record_tracks(const core::ConeObservations& observations);
   void optimise_window();
   void localise();
   LoopClosureStats update_landmark_statistics();
@@ -194,6 +196,10 @@ class GraphSlam : public Backend {
   /// The first pose localised on the fixed map (poses before it belong to the mapping).
   int first_localised_pose_ = 1;
   std::vector<Association> associations_;
+  /// Tracking-aided association: the perception tracks' evidence, and the batch's own (the
+  /// landmark id each observation paired with without the tracks, -1: none).
+  TrackBindings track_bindings_;
+  std::vector<int> evidence_;
   /// The labels of the batch being processed (ideal association only, else empty).
   std::vector<int> labels_;
   core::SlamPhase phase_ = core::SlamPhase::kMapping;

@@ -1,8 +1,10 @@
 // Frame-to-frame cone tracking: predict every track into the new vehicle frame with the
-// odometry, gate observation-track pairs by the Bhattacharyya distance, assign greedily from
-// the closest pair, fuse, vote on the colour, start tracks for the rest, drop the lost.
+// odometry, gate observation-track pairs by the Bhattacharyya distance, assign them jointly (the
+// least total distance), fuse, vote on the colour, start tracks for the rest, drop the lost.
 
 #include "slam/frontend/cone_tracker.hpp"
+
+#include "core/assignment.hpp"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -11,7 +13,6 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
-#include <tuple>
 
 namespace conesim::slam::frontend {
 
@@ -58,23 +59,35 @@ core::ConeObservations ConeTracker::update(const core::ConeObservations& frame,
                    Eigen::Matrix2d::Identity() * config_.motion_noise_m2;
   }
 
-  // gate: every pair within the Bhattacharyya distance, assigned greedily from the closest
-  // (ties by observation, then track index: deterministic)
-  std::vector<std::tuple<double, size_t, size_t>> pairs;
-  for (size_t o = 0; o < frame.cones.size(); ++o)
-    for (size_t k = 0; k < tracks_.size(); ++k) {
+  // assign: the least total Bhattacharyya distance over the frame, an observation that starts a
+  // new track costing the gate (a pair is made where it beats a new track, never beyond the
+  // gate). Pair by pair from the closest, one noisy observation could take its neighbour's
+  // track and push the neighbour's observation onto the next one (a swap).
+  const size_t n_obs = frame.cones.size(), n_tracks = tracks_.size();
+  const double inf = std::numeric_limits<double>::infinity();
+  Eigen::MatrixXd cost = Eigen::MatrixXd::Constant(static_cast<Eigen::Index>(n_obs),
+                                                   static_cast<Eigen::Index>(n_tracks + n_obs), inf);
+  for (size_t o = 0; o < n_obs; ++o) {
+    for (size_t k = 0; k < n_tracks; ++k) {
       const double d = bhattacharyya_distance(frame.cones[o].position, frame.cones[o].covariance,
                                               tracks_[k].position, tracks_[k].covariance);
-      if (d <= config_.max_bhattacharyya) pairs.emplace_back(d, o, k);
+      // a pair costs its distance less the new track it saves (the observation's own column)
+      if (d <= config_.max_bhattacharyya)
+        cost(static_cast<Eigen::Index>(o), static_cast<Eigen::Index>(k)) =
+            d - config_.max_bhattacharyya;
     }
-  std::sort(pairs.begin(), pairs.end());
-  std::vector<int> track_of(frame.cones.size(), -1);
-  std::vector<bool> track_taken(tracks_.size(), false);
-  for (const auto& [d, o, k] : pairs) {
-    if (track_of[o] >= 0 || track_taken[k]) continue;
-    track_of[o] = static_cast<int>(k);
-    track_taken[k] = true;
+    cost(static_cast<Eigen::Index>(o), static_cast<Eigen::Index>(n_tracks + o)) = 0.0;
   }
+  // every observation has its own "new track" column, so the maximal assignment pairs them all
+  // and the cheapest of those is the optimum above
+  const std::vector<int> column = core::hungarian_assign(cost, inf);
+  std::vector<int> track_of(n_obs, -1);
+  std::vector<bool> track_taken(n_tracks, false);
+  for (size_t o = 0; o < n_obs; ++o)
+    if (column[o] >= 0 && column[o] < static_cast<int>(n_tracks)) {
+      track_of[o] = column[o];
+      track_taken[static_cast<size_t>(column[o])] = true;
+    }
 
   // update the matched tracks (Kalman fusion of the two Gaussians), start new ones
   core::ConeObservations out = frame;

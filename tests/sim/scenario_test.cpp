@@ -96,8 +96,8 @@ TEST_F(ScenarioFile, BadSlamBlocksNameTheKeyAndWhatWasExpected) {
   EXPECT_NE(error_of(head + "slam: {drive: graph, graph: {window_poses: 0}}\n")
                 .find("slam.graph.window_poses: expected >= 1"),
             std::string::npos);
-  EXPECT_NE(error_of(head + "slam: {drive: graph, graph: {track_gate_chi2: -1}}\n")
-                .find("slam.graph.track_gate_chi2: expected a chi-square gate > 0"),
+  EXPECT_NE(error_of(head + "slam: {drive: graph, graph: {track_memory_frames: 0.5}}\n")
+                .find("slam.graph.track_memory_frames: expected >= 1 frame"),
             std::string::npos);
   EXPECT_NE(error_of(head + "slam: {drive: ekf, ekf: {joint_probability: 2}}\n")
                 .find("slam.ekf.joint_probability: expected a probability in (0.5, 1)"),

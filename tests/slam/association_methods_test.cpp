@@ -6,9 +6,12 @@
 
 #include <Eigen/Cholesky>
 #include <chrono>
+#include <cmath>
+#include <stdexcept>
 
 #include "slam/association/methods.hpp"
 #include "slam/association/ml_association.hpp"
+#include "slam/association/track_bindings.hpp"
 
 namespace conesim::slam {
 namespace {
@@ -40,15 +43,13 @@ class Frame : public AssociationProblem {
   core::Vec2 candidate_position(int j) const override { return landmarks_[j]; }
   bool allowed(int, int) const override { return true; }
   int observation_track(int i) const override { return tracks_.empty() ? -1 : tracks_[i]; }
-  int candidate_track(int j) const override {
-    return landmark_tracks_.empty() ? -1 : landmark_tracks_[j];
-  }
+  int candidate_landmark(int j) const override { return j; }
   int observation_label(int i) const override { return labels_.empty() ? -1 : labels_[i]; }
   int candidate_label(int j) const override {
     return landmark_labels_.empty() ? -1 : landmark_labels_[j];
   }
 
-  std::vector<int> tracks_, landmark_tracks_, labels_, landmark_labels_;
+  std::vector<int> tracks_, labels_, landmark_labels_;
 
  private:
   std::vector<core::Vec2> landmarks_, observations_;
@@ -116,11 +117,92 @@ TEST(AssociationMethods, JcbbPairsTheMostObservationsItCan) {
   EXPECT_EQ(pairing[1], 2);
 }
 
-TEST(AssociationMethods, TrackingAidedFollowsTheTrackWithinItsLooseGate) {
-  Frame f = ambiguous();
-  f.tracks_ = {7, 8};
-  f.landmark_tracks_ = {7, -1, 8, -1};
-  EXPECT_EQ(associate(with(AssociationMethod::kTrackingAided), f), (std::vector<int>{0, 2}));
+// Tracking-aided association on two cones 0.8 m apart across (landmarks 0 and 1), seen with
+// 0.3 m noise: one observation alone cannot tell them apart well, a track's history can.
+Frame two_close_cones(double observed_y) {
+  return Frame(0.01, 0.3, {{10.0, 0.0}, {10.0, 0.8}}, {{10.0, observed_y}});
+}
+
+// the track's evidence pointed at `landmark` for `frames` frames
+void vote(TrackBindings& bindings, int track, int landmark, int frames) {
+  for (int k = 0; k < frames; ++k) bindings.record({track}, {landmark});
+}
+
+TEST(TrackingAided, ATrackHistoryDecidesBetweenTwoCloseCones) {
+  // 0.45 m from landmark 0, 0.35 m from landmark 1: maximum likelihood takes landmark 1
+  Frame f = two_close_cones(0.45);
+  f.tracks_ = {7};
+  const AssociationParams tracking = with(AssociationMethod::kTrackingAided);
+  EXPECT_EQ(associate(with(AssociationMethod::kMaximumLikelihood), f), (std::vector<int>{1}));
+  // without a memory, or with a fresh track, tracking-aided is maximum likelihood
+  EXPECT_EQ(associate(tracking, f), (std::vector<int>{1}));
+  TrackBindings bindings;
+  EXPECT_EQ(associate(tracking, f, &bindings), (std::vector<int>{1}));
+  // five frames of the track on landmark 0 outweigh the 0.1 m
+  vote(bindings, 7, 0, 5);
+  EXPECT_EQ(bindings.bound_landmark(7), 0);
+  std::vector<int> evidence;
+  EXPECT_EQ(associate(tracking, f, &bindings, &evidence), (std::vector<int>{0}));
+  // the frame's own evidence is the maximum-likelihood pairing, not the track's
+  EXPECT_EQ(evidence, (std::vector<int>{1}));
+  // another track's history says nothing about this observation
+  f.tracks_ = {8};
+  EXPECT_EQ(associate(tracking, f, &bindings), (std::vector<int>{1}));
+}
+
+TEST(TrackingAided, ATrackThatSwappedConesFollowsTheEvidence) {
+  TrackBindings bindings;
+  vote(bindings, 7, 0, 5);
+  const AssociationParams tracking = with(AssociationMethod::kTrackingAided);
+  // the track's observation now sits on landmark 1: d^2 7.1 to landmark 0 (inside the gate)
+  // against 0, more than the track's prior makes up
+  Frame on_one = two_close_cones(0.8);
+  on_one.tracks_ = {7};
+  EXPECT_EQ(associate(tracking, on_one, &bindings), (std::vector<int>{1}));
+  // and beyond the gate the prior never pairs
+  Frame beyond = two_close_cones(1.0);
+  beyond.tracks_ = {7};
+  EXPECT_EQ(associate(tracking, beyond, &bindings), (std::vector<int>{1}));
+  // the evidence keeps pointing at landmark 1: within half the memory the binding moves there,
+  // and once the track's frames on landmark 0 have faded (a memory's worth) its ambiguous
+  // observations go with it
+  vote(bindings, 7, 1, 5);
+  EXPECT_EQ(bindings.bound_landmark(7), 1);
+  Frame ambiguous_one = two_close_cones(0.35);
+  ambiguous_one.tracks_ = {7};
+  EXPECT_EQ(associate(with(AssociationMethod::kMaximumLikelihood), ambiguous_one),
+            (std::vector<int>{0}));
+  vote(bindings, 7, 1, 5);
+  EXPECT_EQ(associate(tracking, ambiguous_one, &bindings), (std::vector<int>{1}));
+}
+
+TEST(TrackingAided, OneWrongFrameDoesNotBindATrack) {
+  // a fresh track paired once with the wrong landmark (noise at long range)
+  TrackBindings bindings;
+  vote(bindings, 9, 1, 1);
+  // its next observation, clearly nearer landmark 0 (0.2 m against 0.6 m), still goes there
+  Frame f = two_close_cones(0.2);
+  f.tracks_ = {9};
+  EXPECT_EQ(associate(with(AssociationMethod::kTrackingAided), f, &bindings),
+            (std::vector<int>{0}));
+  // and three frames of evidence for landmark 0 bind it there
+  vote(bindings, 9, 0, 3);
+  EXPECT_EQ(bindings.bound_landmark(9), 0);
+}
+
+TEST(TrackBindings, ForgetsLostTracksAndRejectsABadMemory) {
+  TrackBindings bindings;
+  vote(bindings, 3, 5, 2);
+  EXPECT_EQ(bindings.tracks(), 1);
+  EXPECT_GT(bindings.bonus(3, 5), 0.0);
+  EXPECT_EQ(bindings.bonus(3, 6), 0.0);
+  EXPECT_EQ(bindings.bonus(-1, 5), 0.0);
+  // two votes: 1 + (1 - 1/10), the prior 2 ln(1 + 1.9)
+  EXPECT_NEAR(bindings.bonus(3, 5), 2.0 * std::log(2.9), 1e-12);
+  for (int k = 0; k <= TrackBindings::kForgetFrames; ++k) bindings.record({4}, {-1});
+  EXPECT_EQ(bindings.bound_landmark(3), -1);
+  EXPECT_EQ(bindings.tracks(), 1);
+  EXPECT_THROW(TrackBindings(0.5), std::invalid_argument);
 }
 
 TEST(AssociationMethods, IdealPairsByTheLabelsAlone) {

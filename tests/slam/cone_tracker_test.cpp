@@ -165,6 +165,22 @@ TEST(ConeTracker, DropsATrackAfterMaxMissedFrames) {
   EXPECT_NE(tracker.update(a, {}).cones[0].track_id, id);
 }
 
+// Two tracks 1 m apart across; in the next frame the first cone is seen 0.55 m off towards the
+// second, the second 0.9 m off away from it. Pair by pair from the closest, the first
+// observation would take the second track (0.45 m) and push the second cone onto a new one (a
+// swap); the least total distance keeps both on their own tracks.
+TEST(ConeTracker, AJointAssignmentAvoidsASwap) {
+  ConeTracker tracker({});
+  const ConeObservations first = tracker.update(
+      frame_of({seen(10, 0.0, ConeClass::kBlue, 0.3), seen(10, 1.0, ConeClass::kBlue, 0.3)}), {});
+  const ConeObservations second = tracker.update(
+      frame_of({seen(10, 0.55, ConeClass::kBlue, 0.3), seen(10, 1.9, ConeClass::kBlue, 0.3)}),
+      {});
+  EXPECT_EQ(second.cones[0].track_id, first.cones[0].track_id);
+  EXPECT_EQ(second.cones[1].track_id, first.cones[1].track_id);
+  EXPECT_EQ(tracker.live_tracks(), 2);
+}
+
 // Two cones closer than the gate allows for each other's noise: each observation goes to its
 // own track (the nearest pair first), not both to one.
 TEST(ConeTracker, AssignsEachObservationToItsNearestTrack) {

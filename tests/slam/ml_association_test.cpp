@@ -160,23 +160,5 @@ TEST(MlAssociation, OneLandmarkPerObservation) {
   EXPECT_EQ(a[1].kind, Association::Kind::kRejected);
 }
 
-TEST(MlAssociation, TrackIdAssociatesDirectlyWithinTheLooseGate) {
-  // the observation is 35 cm off cone 4 (outside the tight gate) but carries its track id and
-  // passes the loose gate: tracking associates it
-  std::vector<LandmarkCandidate> map = lane_map();
-  map[4].track_id = 42;
-  core::ConeObservations obs;
-  core::ConeObservation o;
-  o.covariance = Eigen::Matrix2d::Identity() * 0.1 * 0.1;
-  o.position = map[4].position + core::Vec2(0.35, 0.0);
-  o.track_id = 42;
-  obs.cones.push_back(o);
-  AssociationConfig config;
-  EXPECT_EQ(associate(config, {}, nullptr, map, obs, true)[0].landmark_id, map[4].id);
-  // without tracking it is outside the gate: rejected
-  config.use_track_ids = false;
-  EXPECT_EQ(associate(config, {}, nullptr, map, obs, true)[0].kind, Association::Kind::kRejected);
-}
-
 }  // namespace
 }  // namespace conesim::slam
