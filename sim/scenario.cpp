@@ -389,7 +389,7 @@ slam::AssociationMethod read_association(const YAML::Node& n, const Where& w,
 }
 
 // slam: NAME, or slam: {drive: NAME, shadow: [NAME, NAME:METHOD, ...], association: METHOD or
-// {NAME: METHOD, ...}, graph: {...}, ekf: {...}}
+// {NAME: METHOD, ...}, graph: {...}, ekf: {...}, fastslam: {...}}
 void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario& s) {
   if (n.IsScalar()) {
     s.slam = read_backend(n, top, "slam", true);
@@ -437,7 +437,7 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
         [&](const YAML::Node& v) {
           if (v.IsScalar()) {
             const slam::AssociationMethod m = read_association(v, w, "association");
-            s.slam_association = {{"graph", m}, {"ekf", m}};
+            for (const std::string& name : slam::backend_names()) s.slam_association[name] = m;
             return;
           }
           const Where a{&context, "slam.association"};
@@ -474,6 +474,38 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
                         number("joint_probability", ekf.association.joint_probability, e),
                         number("nn_radius_m", ekf.association.nn_radius_m, e),
                         number("track_memory_frames", ekf.association.track_memory_frames, e)});
+        }},
+       {"fastslam",
+        [&](const YAML::Node& v) {
+          auto& f = s.slam_settings.fastslam;
+          const Where e{&context, "slam.fastslam"};
+          read_section(
+              v, e,
+              {integer("particles", f.particles, e),
+               number("resample_fraction", f.resample_fraction, e),
+               number("new_landmark_likelihood", f.new_landmark_likelihood, e),
+               number("unseen_penalty", f.unseen_penalty, e),
+               number("colour_mismatch_penalty", f.colour_mismatch_penalty, e),
+               number("new_landmark_min_distance_m", f.new_landmark_min_distance_m, e),
+               number("new_landmark_chi2", f.new_landmark_chi2, e),
+               integer("confirm_sightings", f.confirm_sightings, e),
+               number("tentative_max_travel_m", f.tentative_max_travel_m, e),
+               integer("class_vote_margin", f.class_vote_margin, e),
+               number("odometry_noise_scale", f.odometry_noise_scale, e),
+               number("yaw_noise_per_m", f.yaw_noise_per_m, e),
+               number("fov_margin_m", f.fov_margin_m, e),
+               number("loop_closure_factor", f.loop_closure.returned_fraction, e),
+               number("loop_min_travel_m", f.loop_closure.min_travel_m, e),
+               number("closure_delay_m", f.loop_closure.closure_delay_m, e),
+               number("closure_max_spread_m", f.closure_max_spread_m, e),
+               {"localise_after_loop_closure",
+                [&](const YAML::Node& x) {
+                  f.localise_after_loop_closure = read_bool(x, e, "localise_after_loop_closure");
+                }},
+               number("gate_chi2", f.association.gate_chi2, e),
+               number("joint_probability", f.association.joint_probability, e),
+               number("nn_radius_m", f.association.nn_radius_m, e),
+               number("track_gate_chi2", f.association.track_gate_chi2, e)});
         }},
        {"graph", [&](const YAML::Node& v) {
           const Where g{&context, "slam.graph"};
@@ -819,7 +851,8 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
     if (slam_criteria && s.slam == "none")
       context.fail("pass",
                    "SLAM criteria (max_map_rmse_m, max_ate_rmse_m, min_da_correct_fraction, "
-                   "max_false_loop_closures, max_map_missed_fraction) need slam: graph or ekf");
+                   "max_false_loop_closures, max_map_missed_fraction) need slam: graph, ekf, "
+                   "fastslam1 or fastslam2");
   }
   if (!(s.start_delay_s >= 0.0 && s.start_delay_s <= 60.0))
     context.fail("start_delay_s", "expected a delay from 0 to 60 s");
@@ -846,6 +879,17 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   // (the association's parameters sit beside the others under slam.ekf)
   if (std::string e = s.slam_settings.ekf.validate(); !e.empty())
     context.fail_check("slam.ekf", e.starts_with("association.") ? e.substr(12) : e);
+  if (std::string e = s.slam_settings.fastslam.validate(); !e.empty()) {
+    // the loop closure's keys are read without their section's prefix; its fraction is the
+    // thesis's loop closure factor
+    if (e.starts_with("loop_closure.returned_fraction"))
+      e = "loop_closure_factor" + e.substr(30);
+    else if (e.starts_with("loop_closure.min_travel_m"))
+      e = "loop_min_travel_m" + e.substr(25);
+    else if (e.starts_with("loop_closure."))
+      e = e.substr(13);
+    context.fail_check("slam.fastslam", e);
+  }
   if (std::string e = s.slam_settings.graph.validate(); !e.empty())
     context.fail_check("slam.graph", e.starts_with("graph_slam.") ? e.substr(11) : e);
   if (!(s.slam_settings.graph.association.gate_chi2 > 0.0))

@@ -20,7 +20,8 @@ namespace {
 constexpr TimeUs kInViewEveryUs = 50'000;
 
 // a back-end's settings as the scenario and its perception make them
-slam::BackendSettings lane_settings(const Scenario& s, const std::string& backend,
+slam::BackendSettings lane_settings(const Scenario& s, const std::string& lane,
+                                    const std::string& backend,
                                     std::optional<slam::AssociationMethod> method) {
   slam::BackendSettings settings = s.slam_settings;
   // where the perception sees cones: a landmark there that goes unseen counts against it
@@ -30,11 +31,21 @@ slam::BackendSettings lane_settings(const Scenario& s, const std::string& backen
   settings.graph.max_range_m = view.max_range_m;
   settings.graph.fov_deg = view.fov_deg;
   settings.ekf.sensor_x_m = view.sensor_x_m;
+  settings.fastslam.sensor_x_m = view.sensor_x_m;
+  settings.fastslam.min_range_m = view.min_range_m;
+  settings.fastslam.max_range_m = view.max_range_m;
+  settings.fastslam.fov_deg = view.fov_deg;
+  // a particle filter's random draws: from the scenario's seed and the lane's name (FNV-1a),
+  // so that two lanes of one run draw differently and a run repeats to the bit
+  std::uint64_t seed = 1469598103934665603ULL ^ s.seed;
+  for (const char c : lane) seed = (seed ^ static_cast<unsigned char>(c)) * 1099511628211ULL;
+  settings.fastslam.seed = seed;
   if (!method)
     if (const auto it = s.slam_association.find(backend); it != s.slam_association.end())
       method = it->second;
   if (method) {
     settings.ekf.association.method = *method;
+    settings.fastslam.association.method = *method;
     // GraphSLAM's built-in association is ML with individual compatibility and the drift
     // consensus on returning, tracking-aided by default; the other methods replace it
     using M = slam::AssociationMethod;
@@ -135,7 +146,8 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
                     [&](const auto& l) { return l->name == specs[k].lane; }))
       continue;
     auto backend =
-        slam::make_backend(specs[k].backend, lane_settings(s, specs[k].backend, specs[k].method));
+        slam::make_backend(specs[k].backend,
+                           lane_settings(s, specs[k].lane, specs[k].backend, specs[k].method));
     auto lane = std::make_unique<Lane>(specs[k].lane, k == 0, std::move(backend), track, view);
     // the association it runs: its own, the scenario's for the back-end, or the default
     std::optional<slam::AssociationMethod> method = specs[k].method;
@@ -284,6 +296,13 @@ nlohmann::json SlamRunner::all_metrics() const {
     m["association"] = lane->association;
     // an ablation that read the labels: never a figure a car could reach
     m["ideal_association"] = lane->ideal;
+    // which estimate is reported: a particle filter's best particle, say
+    m["estimate_source"] = lane->backend->estimate_source();
+    if (const auto stats = lane->backend->statistics(); !stats.empty()) {
+      nlohmann::json b = nlohmann::json::object();
+      for (const auto& [key, value] : stats) b[key] = value;
+      m["backend_stats"] = std::move(b);
+    }
     out[lane->name] = std::move(m);
   }
   return out;

@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/autonomy_types.hpp"
@@ -94,6 +95,14 @@ class Backend {
 
   /// Microseconds the association of the last batch took, negative when not measured.
   virtual double last_association_us() const { return -1.0; }
+
+  /// Where the estimate comes from, for metrics.json (`estimate_source`): "state" for a
+  /// back-end that keeps one estimate; a particle filter names the particle it reports.
+  virtual std::string estimate_source() const { return "state"; }
+
+  /// Back-end-specific counters for metrics.json (`backend_stats`), e.g. a particle filter's
+  /// resamplings; empty by default.
+  virtual std::vector<std::pair<std::string, double>> statistics() const { return {}; }
 };
 
 }  // namespace conesim::slam

@@ -8,6 +8,7 @@
 
 #include "slam/backend.hpp"
 #include "slam/backends/ekf_slam.hpp"
+#include "slam/backends/fastslam.hpp"
 #include "slam/backends/graph_slam.hpp"
 
 namespace conesim::slam {
@@ -16,12 +17,14 @@ namespace conesim::slam {
 struct BackendSettings {
   GraphSlamConfig graph;
   EkfSlamConfig ekf;
+  /// FastSLAM 1.0 and 2.0 share their parameters (`slam.fastslam`); the name sets the version.
+  FastSlamConfig fastslam;
 };
 
-/// The back-ends' names: graph, ekf.
+/// The back-ends' names: graph, ekf, fastslam1, fastslam2.
 const std::vector<std::string>& backend_names();
 
-/// "graph, ekf" for error messages.
+/// "graph, ekf, fastslam1, fastslam2" for error messages.
 std::string backend_list();
 
 /// True for a known back-end name.

@@ -66,7 +66,8 @@ TEST_F(ScenarioFile, SlamBlockNamesTheDrivingAndTheShadowBackEnds) {
 TEST_F(ScenarioFile, BadSlamBlocksNameTheKeyAndWhatWasExpected) {
   const std::string head = "event: trackdrive\nperception: cone_sensor\n";
   EXPECT_NE(error_of(head + "slam: fastslam9\n")
-                .find("s.yaml:3: slam: expected none or a SLAM back-end (graph, ekf), got "
+                .find("s.yaml:3: slam: expected none or a SLAM back-end (graph, ekf, fastslam1, "
+                      "fastslam2), got "
                       "'fastslam9'"),
             std::string::npos);
   EXPECT_NE(error_of(head + "slam: {drive: graph, shadow: [ekf, foo]}\n")
@@ -85,7 +86,7 @@ TEST_F(ScenarioFile, BadSlamBlocksNameTheKeyAndWhatWasExpected) {
             std::string::npos);
   EXPECT_NE(error_of(head + "slam: {drive: graph, bogus: 1}\n")
                 .find("slam.bogus: unknown key; expected one of: drive, shadow, association, ekf, "
-                      "graph"),
+                      "fastslam, graph"),
             std::string::npos);
   EXPECT_NE(error_of(head + "slam: {shadow: [ekf]}\n")
                 .find("slam.shadow: shadow back-ends run beside a driving one"),
@@ -99,6 +100,30 @@ TEST_F(ScenarioFile, BadSlamBlocksNameTheKeyAndWhatWasExpected) {
   EXPECT_NE(error_of(head + "slam: {drive: graph, graph: {track_memory_frames: 0.5}}\n")
                 .find("slam.graph.track_memory_frames: expected >= 1 frame"),
             std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: fastslam2, fastslam: {particles: 0}}\n")
+                .find("slam.fastslam.particles: expected a count from 1 to 10000"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: fastslam1, fastslam: {loop_closure_factor: 1.5}}\n")
+                .find("slam.fastslam.loop_closure_factor: expected in [0, 1]"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: fastslam1, fastslam: {parts: 5}}\n")
+                .find("slam.fastslam.parts: unknown key"),
+            std::string::npos);
+  {
+    const Scenario f = load_scenario(
+        write(head + "slam: {drive: fastslam2, shadow: [fastslam1, 'fastslam1:jcbb'],\n"
+                     "  fastslam: {particles: 20, unseen_penalty: 0.8, loop_closure_factor: 0.7}}\n"));
+    EXPECT_EQ(f.slam, "fastslam2");
+    ASSERT_EQ(f.slam_shadows.size(), 2u);
+    EXPECT_EQ(f.slam_shadows[1].lane_name(), "fastslam1-jcbb");
+    EXPECT_EQ(f.slam_settings.fastslam.particles, 20);
+    EXPECT_DOUBLE_EQ(f.slam_settings.fastslam.unseen_penalty, 0.8);
+    EXPECT_DOUBLE_EQ(f.slam_settings.fastslam.loop_closure.returned_fraction, 0.7);
+    // one association for all back-ends reaches the particle filters too
+    EXPECT_EQ(load_scenario(write(head + "slam: {drive: graph, association: scnn}\n"))
+                  .slam_association.at("fastslam2"),
+              slam::AssociationMethod::kScnn);
+  }
   EXPECT_NE(error_of(head + "slam: {drive: ekf, ekf: {joint_probability: 2}}\n")
                 .find("slam.ekf.joint_probability: expected a probability in (0.5, 1)"),
             std::string::npos);

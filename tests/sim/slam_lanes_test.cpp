@@ -97,6 +97,32 @@ TEST(SlamLanes, ShadowsAreScoredAndLeaveTheDrivenTrajectoryBitIdentical) {
   EXPECT_EQ(slam["ekf"]["phase"], "localisation");
 }
 
+TEST(SlamLanes, FastSlamShadowsLeaveTheDrivenTrajectoryBitIdenticalAndNameTheirParticle) {
+  const LaneRun alone = run_trackdrive({"driver.trackdrive_laps=1"}, "fs-alone");
+  const LaneRun shadowed = run_trackdrive(
+      {"driver.trackdrive_laps=1", "slam.shadow=[fastslam1, fastslam2]"}, "fs-shadowed");
+  ASSERT_TRUE(alone.result.referee.completed);
+  ASSERT_EQ(alone.trajectory.size(), shadowed.trajectory.size());
+  for (size_t i = 1; i < alone.trajectory.size(); ++i)
+    ASSERT_EQ(first_fields(alone.trajectory[i], 10), first_fields(shadowed.trajectory[i], 10))
+        << "row " << i;
+  EXPECT_EQ(without_timing(alone.result.metrics["slam"]["graph"]),
+            without_timing(shadowed.result.metrics["slam"]["graph"]));
+  const nlohmann::json& slam = shadowed.result.metrics["slam"];
+  EXPECT_EQ(slam["graph"]["estimate_source"], "state");
+  for (const char* lane : {"fastslam1", "fastslam2"}) {
+    ASSERT_TRUE(slam.contains(lane)) << lane;
+    EXPECT_EQ(slam[lane]["role"], "shadow");
+    // the map a particle filter reports is its best particle's, and metrics.json says so
+    EXPECT_NE(slam[lane]["estimate_source"].get<std::string>().find("best particle"),
+              std::string::npos)
+        << lane;
+    EXPECT_EQ(slam[lane]["backend_stats"]["particles"].get<double>(), 50.0) << lane;
+    EXPECT_GT(slam[lane]["backend_stats"]["resamplings"].get<double>(), 0.0) << lane;
+    EXPECT_GE(slam[lane]["da_correct_fraction"].get<double>(), 0.99) << lane;
+  }
+}
+
 TEST(SlamLanes, ShadowFiguresAreTheSameOnEveryRun) {
   // the shadows run on threads of their own: their figures must not depend on the timing
   const LaneRun a = run_trackdrive({"slam.shadow=[ekf]", "driver.trackdrive_laps=1"}, "a");

@@ -10,25 +10,14 @@
 #include <cstdlib>
 
 #include "slam/association/ml_association.hpp"
+#include "numerical.hpp"
 #include "slam_drive.hpp"
 #include "tracks/generator.hpp"
 
 namespace conesim::slam {
 namespace {
 
-// central differences of f (R^3 or R^2 -> R^k) at x
-template <int In, int Out, typename F>
-Eigen::Matrix<double, Out, In> numerical(const F& f, const Eigen::Matrix<double, In, 1>& x) {
-  Eigen::Matrix<double, Out, In> j;
-  const double h = 1e-6;
-  for (int c = 0; c < In; ++c) {
-    Eigen::Matrix<double, In, 1> a = x, b = x;
-    a(c) += h;
-    b(c) -= h;
-    j.col(c) = (f(a) - f(b)) / (2 * h);
-  }
-  return j;
-}
+using testing::numerical;
 
 Eigen::Vector3d vec(const core::Pose2& p) {
   return {p.x, p.y, p.yaw};
@@ -80,15 +69,7 @@ TEST(EkfSlamJacobians, LandmarkInitialisationMatchesNumericalDerivatives) {
   EXPECT_LT((l_z - by_z).cwiseAbs().maxCoeff(), 1e-7);
 }
 
-void print(const char* what, const testing::DriveResult& r) {
-  std::printf(
-      "%s: lap %.0f m, %d batches | map RMSE %.3f m (%d matched, %d spurious, %d missed) | ATE "
-      "%.3f m (max %.3f) | DA %.3f %% (%d wrong) | loop closures %d at %.0f m | update median "
-      "%.3f ms, p99 %.3f ms\n",
-      what, r.lap_m, r.batches, r.map_rmse_m, r.map_matched, r.map_spurious, r.map_missed,
-      r.ate_rmse_m, r.max_position_error_m, 100.0 * r.da_correct_fraction, r.da_wrong,
-      r.loop_closures, r.loop_closure_travel_m, r.update_ms_median, r.update_ms_p99);
-}
+using testing::print;
 
 TEST(EkfSlam, TwoLapsOfAGeneratedCircuitMapAndLocaliseWithinTargets) {
   const tracks::Track track = tracks::generate_circuit(3);

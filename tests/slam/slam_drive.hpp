@@ -125,6 +125,17 @@ inline size_t closest_index(const std::vector<Vec2>& line, const Vec2& p) {
   return best;
 }
 
+/// One line of a drive's figures on stdout (the test logs show what a run reached).
+inline void print(const char* what, const DriveResult& r) {
+  std::printf(
+      "%s: lap %.0f m, %d batches | map RMSE %.3f m (%d matched, %d spurious, %d missed) | ATE "
+      "%.3f m (max %.3f) | DA %.3f %% (%d wrong) | loop closures %d at %.0f m | update median "
+      "%.3f ms, p99 %.3f ms\n",
+      what, r.lap_m, r.batches, r.map_rmse_m, r.map_matched, r.map_spurious, r.map_missed,
+      r.ate_rmse_m, r.max_position_error_m, 100.0 * r.da_correct_fraction, r.da_wrong,
+      r.loop_closures, r.loop_closure_travel_m, r.update_ms_median, r.update_ms_p99);
+}
+
 /// Drives the track with the backend in the loop (the backend never steers: the car follows
 /// the true centre line) and scores the backend.
 inline DriveResult drive(const tracks::Track& track, Backend& backend, const DriveParams& p) {
