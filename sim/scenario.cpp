@@ -505,7 +505,7 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
                number("gate_chi2", f.association.gate_chi2, e),
                number("joint_probability", f.association.joint_probability, e),
                number("nn_radius_m", f.association.nn_radius_m, e),
-               number("track_gate_chi2", f.association.track_gate_chi2, e)});
+               number("track_memory_frames", f.association.track_memory_frames, e)});
         }},
        {"graph", [&](const YAML::Node& v) {
           const Where g{&context, "slam.graph"};

@@ -96,7 +96,7 @@ class ParticleProblem : public AssociationProblem {
     return class_compatible(obs_.cones[i].cls, cand_[j].landmark->class_votes, margin_);
   }
   int observation_track(int i) const override { return obs_.cones[i].track_id; }
-  int candidate_track(int j) const override { return cand_[j].landmark->track_id; }
+  int candidate_landmark(int j) const override { return cand_[j].id; }
   int observation_label(int i) const override {
     return i < static_cast<int>(labels_.size()) ? labels_[i] : -1;
   }
@@ -142,7 +142,7 @@ std::string FastSlamConfig::validate() const {
   if (!(association.joint_probability > 0.5 && association.joint_probability < 1.0))
     return "joint_probability: expected a probability in (0.5, 1)";
   if (!(association.nn_radius_m > 0.0)) return "nn_radius_m: expected > 0 m";
-  if (!(association.track_gate_chi2 > 0.0)) return "track_gate_chi2: expected > 0";
+  if (!(association.track_memory_frames >= 1.0)) return "track_memory_frames: expected >= 1 frame";
   return loop_closure.validate();
 }
 
@@ -152,6 +152,7 @@ FastSlam::FastSlam(const FastSlamConfig& config) : config_(config) {
 
 void FastSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
   rng_.seed(config_.seed);
+  track_bindings_ = TrackBindings(config_.association.track_memory_frames);
   particles_.assign(config_.particles, Particle{});
   for (Particle& p : particles_) p.pose = initial_pose;
   index_.clear();
@@ -311,7 +312,14 @@ double FastSlam::update_particle(Particle& particle, const SlamInput& input,
   const ParticleProblem problem(pose, pose_cov, obs, std::move(candidates),
                                 config_.class_vote_margin, labels_);
   const auto t0 = std::chrono::steady_clock::now();
-  std::vector<int> pairing = associate(config_.association, problem);
+  // tracking-aided: the filter's one track memory is every particle's prior (landmark ids are
+  // shared between the particles that inherited a landmark); the frame's evidence is taken from
+  // the best particle after the update (FastSlam::update)
+  const bool tracking = config_.association.method == AssociationMethod::kTrackingAided;
+  std::vector<int> evidence;
+  std::vector<int> pairing = associate(config_.association, problem,
+                                       tracking ? &track_bindings_ : nullptr,
+                                       tracking ? &evidence : nullptr);
   association_us_ +=
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
   for (int i = 0; i < n_obs; ++i)
@@ -458,6 +466,17 @@ double FastSlam::update_particle(Particle& particle, const SlamInput& input,
       if (lm.first_travel_m <= lc.start_window_m) ++particle.start_returned;
     }
   }
+  if (tracking) {
+    // each observation's own evidence as a landmark id: the pairing without the tracks, or the
+    // landmark it started
+    particle.evidence.assign(n_obs, -1);
+    for (int i = 0; i < n_obs; ++i) {
+      if (evidence[i] >= 0)
+        particle.evidence[i] = problem.candidate(evidence[i]).id;
+      else if (pairing[i] < 0 && particle.associations[i].kind == Association::Kind::kNew)
+        particle.evidence[i] = particle.associations[i].landmark_id;
+    }
+  }
   stats->travel_m = travel_m_;
   stats->returned = particle.returned;
   stats->start_returned = particle.start_returned;
@@ -556,6 +575,11 @@ void FastSlam::process(const SlamInput& input) {
   }
   next_id_ = std::max(next_id_, id_base + n_obs);
   normalise_weights();
+  if (config_.association.method == AssociationMethod::kTrackingAided) {
+    std::vector<int> tracks(n_obs);
+    for (int i = 0; i < n_obs; ++i) tracks[i] = obs.cones[i].track_id;
+    track_bindings_.record(tracks, particles_[best_particle()].evidence);
+  }
   ++frames_;
 
   // the loop closes on the best particle's statistics once the particles agree on the pose

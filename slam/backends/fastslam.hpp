@@ -134,6 +134,9 @@ class FastSlam : public Backend {
     double log_weight = 0.0;
     PersistentMap<FastLandmark> map;
     std::vector<Association> associations;
+    // tracking-aided association: each observation's own evidence of the last frame, as a
+    // landmark id (-1: none)
+    std::vector<int> evidence;
     // confirmed landmarks in the returned loop state, and those of them first seen near the
     // start (the loop closure statistics, kept as counts so that no update scans the map)
     int returned = 0;
@@ -213,6 +216,8 @@ class FastSlam : public Backend {
   double association_us_ = 0.0;
   std::vector<int> labels_;
   std::vector<double> last_log_factors_;
+  // tracking-aided association's memory of the perception's tracks
+  TrackBindings track_bindings_;
 };
 
 }  // namespace conesim::slam
