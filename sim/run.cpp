@@ -434,7 +434,8 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       trajectory_t.push_back(t);
       if (slam) trajectory_odometry.push_back(slam->odometry_pose_now(t));
     }
-    car.step(command);
+    // MuJoCo's sensors only on the steps whose IMU sample SLAM's odometry takes
+    car.step(command, slam && slam->imu_due(t + step_us));
     t += step_us;
     referee.update(t, car.truth());
     rig.step(t, car, referee);

@@ -38,6 +38,9 @@ class SlamRunner {
   /// Samples the vehicle sensors due at t.
   void step(core::TimeUs t, const VehicleSim& car);
 
+  /// Whether step(t) reads the IMU: the physics step ending at t must compute the sensors.
+  bool imu_due(core::TimeUs t) const { return feed_.imu_due(t); }
+
   /// Runs every lane on a cone frame delivered at time now (true pose at capture for the
   /// scoring): the driving lane at once, or with a SLAM latency on its thread, its estimate
   /// taking effect in catch_up() once the latency has passed; the shadows on their threads.

@@ -21,6 +21,9 @@ class VehicleSensorFeed {
   /// Samples the sensors due at t and delivers what has arrived by t.
   void step(core::TimeUs t, const VehicleSim& car);
 
+  /// Whether the IMU samples at t: the physics step that ends at t must compute the sensors.
+  bool imu_due(core::TimeUs t) const;
+
   /// Feeds the delivered samples stamped up to `stamp` into the odometry and drops them.
   void feed(slam::Odometry& odometry, core::TimeUs stamp);
 
