@@ -76,6 +76,9 @@ struct SlamRunner::Lane {
   // an update running on the lane's thread (or done), and when its estimate takes effect
   struct Pending {
     TimeUs due_us;
+    // the tick that takes the frame; processed ahead of it (process_ahead) or at it
+    TimeUs tick_us;
+    bool ahead;
     DeliveredDetections frame;
     core::Pose2 odometry_delta;
     std::future<UpdateResult> result;
@@ -156,7 +159,8 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
       lane->scorer.set_prior_map_identities();
     }
     lane->last_estimate = lane->backend->estimate();
-    if (!lane->driving || latency_us_ > 0) lane->thread = std::make_unique<WorkerThread>();
+    // the driving lane's thread runs the updates with a latency and those processed ahead
+    lane->thread = std::make_unique<WorkerThread>();
     lanes_.push_back(std::move(lane));
   }
   odometry_.reset(0);
@@ -174,29 +178,51 @@ void SlamRunner::step(TimeUs t, const VehicleSim& car) {
   feed_.step(t, car);
 }
 
-void SlamRunner::process(const DeliveredDetections& frame, TimeUs now) {
+slam::SlamInput SlamRunner::next_input(const DeliveredDetections& frame) {
   // the back-ends' input: the odometry up to the frame's stamp and its cones, the same for all
   const TimeUs stamp = frame.observations.stamp;
   feed_.feed(odometry_, stamp);
-  const slam::SlamInput input{odometry_.take_delta(stamp), frame.observations, {}};
+  slam::SlamInput input{odometry_.take_delta(stamp), frame.observations, {}};
   frame_odometry_.push_back({stamp, frame_odometry_.back().second.compose(input.odometry.delta)});
+  return input;
+}
+
+void SlamRunner::post(const DeliveredDetections& frame, const slam::SlamInput& input,
+                      TimeUs tick, bool ahead) {
   for (auto& lane_ptr : lanes_) {
     Lane& lane = *lane_ptr;
     // the labels go only to a lane with the ideal association (an ablation)
     slam::SlamInput lane_input = input;
     if (lane.ideal) lane_input.true_ids = frame.labels.cone_id;
-    if (!lane.thread) {
+    if (!ahead && lane.driving && latency_us_ == 0) {
+      // at once; an update processed ahead for an earlier tick was taken in by catch_up()
+      if (!lane.pending.empty())
+        throw std::logic_error("SLAM: a frame processed while an earlier one is running");
       take_in(lane, frame, lane.run(lane_input));
       continue;
     }
     // on the lane's thread (one update at a time, in order)
     std::future<UpdateResult> result =
         lane.thread->post([&lane, lane_input] { return lane.run(lane_input); });
-    lane.pending.push_back({now + latency_us_, frame, input.odometry.delta, std::move(result)});
+    lane.pending.push_back(
+        {tick + latency_us_, tick, ahead, frame, input.odometry.delta, std::move(result)});
   }
 }
 
+void SlamRunner::process(const DeliveredDetections& frame, TimeUs now) {
+  post(frame, next_input(frame), now, false);
+}
+
+bool SlamRunner::input_final(const DeliveredDetections& frame, TimeUs now) const {
+  return frame.observations.stamp + feed_.max_latency_us() <= now;
+}
+
+void SlamRunner::process_ahead(const DeliveredDetections& frame, TimeUs tick) {
+  post(frame, next_input(frame), tick, true);
+}
+
 void SlamRunner::catch_up(TimeUs t) {
+  last_tick_us_ = t;
   for (auto& lane_ptr : lanes_) {
     Lane& lane = *lane_ptr;
     while (!lane.pending.empty()) {
@@ -204,8 +230,9 @@ void SlamRunner::catch_up(TimeUs t) {
       // the driving lane waits for its latency; a shadow's finished updates are scored as
       // they come (in order, so the figures do not depend on when)
       const bool ready = lane.driving ? update.due_us <= t
-                                      : update.result.wait_for(std::chrono::seconds(0)) ==
-                                            std::future_status::ready;
+                                      : update.tick_us <= t &&
+                                            update.result.wait_for(std::chrono::seconds(0)) ==
+                                                std::future_status::ready;
       if (!ready) break;
       take_in(lane, update.frame, update.result.get());
       lane.pending.pop_front();
@@ -216,8 +243,13 @@ void SlamRunner::catch_up(TimeUs t) {
 void SlamRunner::finish() {
   for (auto& lane_ptr : lanes_) {
     Lane& lane = *lane_ptr;
-    for (; !lane.pending.empty(); lane.pending.pop_front())
-      take_in(lane, lane.pending.front().frame, lane.pending.front().result.get());
+    for (; !lane.pending.empty(); lane.pending.pop_front()) {
+      Lane::Pending& update = lane.pending.front();
+      const UpdateResult result = update.result.get();
+      // processed ahead for a tick the run did not reach: the car never had this frame
+      if (update.ahead && update.tick_us > last_tick_us_) continue;
+      take_in(lane, update.frame, result);
+    }
   }
 }
 

@@ -46,6 +46,17 @@ class SlamRunner {
   /// taking effect in catch_up() once the latency has passed; the shadows on their threads.
   void process(const DeliveredDetections& frame, core::TimeUs now);
 
+  /// Whether a frame's input is final at time now: every vehicle sensor sample stamped up to
+  /// the frame has arrived (the odometry process() would give it is the one it gets now).
+  bool input_final(const DeliveredDetections& frame, core::TimeUs now) const;
+
+  /// process(frame, tick) started ahead of the tick, on the lanes' threads, for a frame whose
+  /// input is final: nothing else reaches SLAM before the tick (no process(), estimate_now()
+  /// or odometry_pose_now() in between), so the update runs while the physics steps on and
+  /// takes effect in catch_up(tick) exactly as if it had run there. One the run never reaches
+  /// the tick of is dropped in finish().
+  void process_ahead(const DeliveredDetections& frame, core::TimeUs tick);
+
   /// Takes in the driving updates whose latency has passed by time t, oldest first, and the
   /// shadow updates already done (call before process() and estimate_now() at each tick).
   void catch_up(core::TimeUs t);
@@ -93,6 +104,12 @@ class SlamRunner {
   struct Lane;
   struct UpdateResult;
   void take_in(Lane& lane, const DeliveredDetections& frame, const UpdateResult& update);
+  // the lanes' common input for a frame (takes the odometry up to the frame's stamp)
+  slam::SlamInput next_input(const DeliveredDetections& frame);
+  // runs every lane on the input: the driving lane at once when it has no latency and the
+  // tick is now, otherwise on the lanes' threads, taking effect at tick (plus the latency)
+  void post(const DeliveredDetections& frame, const slam::SlamInput& input, core::TimeUs tick,
+            bool ahead);
 
   const tracks::Track& track_;
   VehicleSensorFeed feed_;
@@ -104,6 +121,9 @@ class SlamRunner {
   core::Estimate last_estimate_;
   core::ConeObservations last_observations_;
   core::Pose2 last_frame_pose_;
+  // the last tick catch_up() ran at: an update processed ahead for a later tick never took
+  // effect
+  core::TimeUs last_tick_us_ = -1;
   // the driving lane first; each lane's jobs use its back-end, so the lanes (and their
   // threads) go before the members above
   std::vector<std::unique_ptr<Lane>> lanes_;

@@ -20,6 +20,11 @@ bool VehicleSensorFeed::imu_due(core::TimeUs t) const {
   return t % imu_.config().timing.period_us() == 0;
 }
 
+core::TimeUs VehicleSensorFeed::max_latency_us() const {
+  return std::max({imu_.config().timing.latency_us(), wheels_.config().timing.latency_us(),
+                   steering_.config().timing.latency_us()});
+}
+
 void VehicleSensorFeed::step(core::TimeUs t, const VehicleSim& car) {
   // sample what is due; samples arrive after their latency
   const bool imu_due = this->imu_due(t);
