@@ -113,7 +113,10 @@ struct SlamRunner::Lane {
   SlamScorer scorer;
   std::deque<Pending> pending;
   core::Estimate last_estimate;
-  // last member: its jobs use the backend, so it stops before the members above go
+  // the scoring posted to the thread (score, note_cones_in_view), checked in finish()
+  std::deque<std::future<void>> scoring;
+  // last member: its jobs use the backend and the scorer, so it stops before the members
+  // above go
   std::unique_ptr<WorkerThread> thread;
 };
 
@@ -172,10 +175,18 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
 SlamRunner::~SlamRunner() = default;
 
 void SlamRunner::step(TimeUs t, const VehicleSim& car) {
-  // the true cones the perception could see from the true pose, every kInViewEveryUs
-  if (t % kInViewEveryUs == 0)
-    for (auto& lane : lanes_) lane->scorer.note_cones_in_view(car.truth().pose);
+  // the true cones the perception could see from the true pose, every kInViewEveryUs (on the
+  // lanes' threads, in order with the scoring of the updates)
+  if (t % kInViewEveryUs == 0) {
+    const core::Pose2 pose = car.truth().pose;
+    for (auto& lane_ptr : lanes_) {
+      Lane& lane = *lane_ptr;
+      lane.scoring.push_back(
+          lane.thread->post([&lane, pose] { lane.scorer.note_cones_in_view(pose); }));
+    }
+  }
   feed_.step(t, car);
+  forward_.t = -1;
 }
 
 slam::SlamInput SlamRunner::next_input(const DeliveredDetections& frame) {
@@ -183,6 +194,7 @@ slam::SlamInput SlamRunner::next_input(const DeliveredDetections& frame) {
   const TimeUs stamp = frame.observations.stamp;
   feed_.feed(odometry_, stamp);
   slam::SlamInput input{odometry_.take_delta(stamp), frame.observations, {}};
+  forward_.t = -1;
   frame_odometry_.push_back({stamp, frame_odometry_.back().second.compose(input.odometry.delta)});
   return input;
 }
@@ -234,7 +246,7 @@ void SlamRunner::catch_up(TimeUs t) {
                                             update.result.wait_for(std::chrono::seconds(0)) ==
                                                 std::future_status::ready;
       if (!ready) break;
-      take_in(lane, update.frame, update.result.get());
+      take_in(lane, std::move(update.frame), update.result.get());
       lane.pending.pop_front();
     }
   }
@@ -245,56 +257,75 @@ void SlamRunner::finish() {
     Lane& lane = *lane_ptr;
     for (; !lane.pending.empty(); lane.pending.pop_front()) {
       Lane::Pending& update = lane.pending.front();
-      const UpdateResult result = update.result.get();
+      UpdateResult result = update.result.get();
       // processed ahead for a tick the run did not reach: the car never had this frame
       if (update.ahead && update.tick_us > last_tick_us_) continue;
-      take_in(lane, update.frame, result);
+      take_in(lane, std::move(update.frame), std::move(result));
     }
+    // the scoring done (an exception in it surfaces here)
+    for (; !lane.scoring.empty(); lane.scoring.pop_front()) lane.scoring.front().get();
   }
 }
 
-void SlamRunner::take_in(Lane& lane, const DeliveredDetections& frame, const UpdateResult& update) {
+void SlamRunner::take_in(Lane& lane, DeliveredDetections frame, UpdateResult update) {
   lane.last_estimate = update.estimate;
-  SlamScorer::Update u;
-  u.stamp = frame.observations.stamp;
-  u.true_pose = frame.capture_pose;
-  u.observations = &frame.observations;
-  u.true_ids = &frame.labels.cone_id;
-  u.estimate = &update.estimate;
-  u.associations = &update.associations;
-  u.loop_closures = update.loop_closures;
-  u.wall_ms = update.wall_ms;
-  u.cpu_ms = update.cpu_ms;
-  u.association_us = update.association_us;
-  lane.scorer.score(u);
-  if (!lane.driving) return;
-  last_estimate_ = update.estimate;
-  last_observations_ = frame.observations;
-  last_frame_pose_ = last_estimate_.pose;
+  if (lane.driving) {
+    last_estimate_ = update.estimate;
+    last_observations_ = frame.observations;
+    last_frame_pose_ = last_estimate_.pose;
+  }
+  // the scoring on the lane's thread: nothing in the loop reads it
+  lane.scoring.push_back(lane.thread->post(
+      [&lane, frame = std::move(frame), update = std::move(update)] {
+        SlamScorer::Update u;
+        u.stamp = frame.observations.stamp;
+        u.true_pose = frame.capture_pose;
+        u.observations = &frame.observations;
+        u.true_ids = &frame.labels.cone_id;
+        u.estimate = &update.estimate;
+        u.associations = &update.associations;
+        u.loop_closures = update.loop_closures;
+        u.wall_ms = update.wall_ms;
+        u.cpu_ms = update.cpu_ms;
+        u.association_us = update.association_us;
+        lane.scorer.score(u);
+      }));
+}
+
+void SlamRunner::wait_for_lanes() const {
+  for (const auto& lane : lanes_) lane->thread->wait_idle();
+}
+
+const SlamRunner::Forward& SlamRunner::forward(TimeUs t) const {
+  if (forward_.t == t) return forward_;
+  slam::Odometry forward = odometry_;
+  feed_.feed_copy(forward, t);
+  forward_.delta = forward.take_delta(t);
+  forward_.speed_mps = forward.speed_mps();
+  forward_.mean_speed_mps = forward.mean_speed_mps();
+  forward_.yaw_rate_rps = forward.yaw_rate_rps();
+  forward_.t = t;
+  return forward_;
 }
 
 core::Estimate SlamRunner::estimate_now(TimeUs t, slam::frontend::SweepMotion* motion) const {
   // carry the last estimate forward with the odometry delivered since its frame
-  slam::Odometry forward = odometry_;
-  feed_.feed_copy(forward, t);
-  const slam::OdometryDelta delta = forward.take_delta(t);
+  const Forward& forward = this->forward(t);
   // the updates still running: the estimate before them, moved on by their odometry
   core::Pose2 pose = last_estimate_.pose;
   for (const Lane::Pending& update : lanes_.front()->pending)
     pose = pose.compose(update.odometry_delta);
   core::Estimate e = last_estimate_;
   e.stamp = t;
-  e.pose = pose.compose(delta.delta);
-  e.speed_mps = forward.speed_mps();
-  e.yaw_rate_rps = forward.yaw_rate_rps();
-  if (motion) *motion = {forward.mean_speed_mps(), e.yaw_rate_rps};
+  e.pose = pose.compose(forward.delta.delta);
+  e.speed_mps = forward.speed_mps;
+  e.yaw_rate_rps = forward.yaw_rate_rps;
+  if (motion) *motion = {forward.mean_speed_mps, e.yaw_rate_rps};
   return e;
 }
 
 core::Pose2 SlamRunner::odometry_pose_now(TimeUs t) const {
-  slam::Odometry forward = odometry_;
-  feed_.feed_copy(forward, t);
-  return frame_odometry_.back().second.compose(forward.take_delta(t).delta);
+  return frame_odometry_.back().second.compose(forward(t).delta.delta);
 }
 
 core::ConeObservations SlamRunner::observations_at(const core::Pose2& now) const {
@@ -305,10 +336,12 @@ core::ConeObservations SlamRunner::observations_at(const core::Pose2& now) const
 }
 
 nlohmann::json SlamRunner::metrics() const {
+  wait_for_lanes();
   return lanes_.front()->scorer.metrics(lanes_.front()->last_estimate);
 }
 
 nlohmann::json SlamRunner::all_metrics() const {
+  wait_for_lanes();
   nlohmann::json out = nlohmann::json::object();
   for (const auto& lane : lanes_) {
     nlohmann::json m = lane->scorer.metrics(lane->last_estimate);
@@ -332,11 +365,13 @@ std::string SlamRunner::name() const {
 }
 
 const SlamScorer& SlamRunner::scorer() const {
+  wait_for_lanes();
   return lanes_.front()->scorer;
 }
 
 std::vector<core::Pose2> SlamRunner::lane_poses(size_t lane_index, const std::vector<TimeUs>& t,
                                                 const std::vector<core::Pose2>& odometry) const {
+  wait_for_lanes();
   // frame k of the lane's scorer is frame k + 1 of frame_odometry_ (entry 0 is the start)
   const SlamScorer& scorer = lanes_[lane_index]->scorer;
   const auto& stamps = scorer.stamps();
@@ -354,6 +389,7 @@ std::vector<core::Pose2> SlamRunner::lane_poses(size_t lane_index, const std::ve
 }
 
 void SlamRunner::write_report(const std::filesystem::path& dir) const {
+  wait_for_lanes();
   std::vector<LaneFigures> figures;
   for (const auto& lane : lanes_) {
     write_slam_figures(lane->scorer, track_, lane->last_estimate, dir,

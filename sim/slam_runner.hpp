@@ -103,7 +103,19 @@ class SlamRunner {
  private:
   struct Lane;
   struct UpdateResult;
-  void take_in(Lane& lane, const DeliveredDetections& frame, const UpdateResult& update);
+  void take_in(Lane& lane, DeliveredDetections frame, UpdateResult update);
+  // waits until every lane's thread has run what was posted (the scorers are up to date)
+  void wait_for_lanes() const;
+  // the odometry carried forward from the last frame to time t (estimate_now and
+  // odometry_pose_now at the same tick share it)
+  struct Forward {
+    core::TimeUs t = -1;
+    slam::OdometryDelta delta;
+    double speed_mps = 0.0;
+    double mean_speed_mps = 0.0;
+    double yaw_rate_rps = 0.0;
+  };
+  const Forward& forward(core::TimeUs t) const;
   // the lanes' common input for a frame (takes the odometry up to the frame's stamp)
   slam::SlamInput next_input(const DeliveredDetections& frame);
   // runs every lane on the input: the driving lane at once when it has no latency and the
@@ -124,6 +136,8 @@ class SlamRunner {
   // the last tick catch_up() ran at: an update processed ahead for a later tick never took
   // effect
   core::TimeUs last_tick_us_ = -1;
+  // forward(t)'s last result; cleared when a sample or a frame changes the odometry's input
+  mutable Forward forward_;
   // the driving lane first; each lane's jobs use its back-end, so the lanes (and their
   // threads) go before the members above
   std::vector<std::unique_ptr<Lane>> lanes_;

@@ -114,7 +114,9 @@ TEST(SlamRunner, AnUpdateProcessedAheadTakesEffectAtItsTickAsIfRunThere) {
     ahead.run_sensors_to(tick - 2000);
     ahead.slam.catch_up(tick - 2000);
     // not a step before its tick: the third frame confirms the cones
-    if (t == 300'000) EXPECT_TRUE(ahead.slam.estimate_now(tick - 2000).map.empty());
+    if (t == 300'000) {
+      EXPECT_TRUE(ahead.slam.estimate_now(tick - 2000).map.empty());
+    }
     ahead.run_sensors_to(tick);
     ahead.slam.catch_up(tick);
   }
