@@ -1,6 +1,7 @@
 #include "sim/slam_runner.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -81,6 +82,10 @@ struct SlamRunner::Lane {
     bool ahead;
     DeliveredDetections frame;
     core::Pose2 odometry_delta;
+    // the input, and who runs it: the lane's thread, or the loop itself if the thread has not
+    // started it when it is due (whoever sets the flag first)
+    slam::SlamInput input;
+    std::shared_ptr<std::atomic<bool>> claimed;
     std::future<UpdateResult> result;
   };
 
@@ -214,10 +219,12 @@ void SlamRunner::post(const DeliveredDetections& frame, const slam::SlamInput& i
       continue;
     }
     // on the lane's thread (one update at a time, in order)
-    std::future<UpdateResult> result =
-        lane.thread->post([&lane, lane_input] { return lane.run(lane_input); });
-    lane.pending.push_back(
-        {tick + latency_us_, tick, ahead, frame, input.odometry.delta, std::move(result)});
+    auto claimed = std::make_shared<std::atomic<bool>>(false);
+    std::future<UpdateResult> result = lane.thread->post([&lane, lane_input, claimed] {
+      return claimed->exchange(true) ? UpdateResult{} : lane.run(lane_input);
+    });
+    lane.pending.push_back({tick + latency_us_, tick, ahead, frame, input.odometry.delta,
+                            lane_input, std::move(claimed), std::move(result)});
   }
 }
 
@@ -246,7 +253,11 @@ void SlamRunner::catch_up(TimeUs t) {
                                             update.result.wait_for(std::chrono::seconds(0)) ==
                                                 std::future_status::ready;
       if (!ready) break;
-      take_in(lane, std::move(update.frame), update.result.get());
+      // a due update the lane's thread has not started (a busy machine keeps it waiting) runs
+      // here; only the last one pending, so that no later update can run beside it
+      const bool here =
+          lane.driving && lane.pending.size() == 1 && !update.claimed->exchange(true);
+      take_in(lane, std::move(update.frame), here ? lane.run(update.input) : update.result.get());
       lane.pending.pop_front();
     }
   }
