@@ -434,11 +434,25 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       trajectory_t.push_back(t);
       if (slam) trajectory_odometry.push_back(slam->odometry_pose_now(t));
     }
-    car.step(command);
+    // MuJoCo's sensors only on the steps whose IMU sample SLAM's odometry takes
+    car.step(command, slam && slam->imu_due(t + step_us));
     t += step_us;
     referee.update(t, car.truth());
     rig.step(t, car, referee);
-    if (slam) slam->step(t, car);
+    if (slam) {
+      slam->step(t, car);
+      // a frame the next driver tick takes goes to SLAM now if nothing before that tick reads
+      // or changes SLAM's inputs (no trajectory row, and the tracker's motion is set at ticks
+      // only): its update runs on a thread while the physics steps on, and takes effect at
+      // the tick as if it had run there
+      auto next_at_or_after = [t](TimeUs period) { return (t + period - 1) / period * period; };
+      const TimeUs tick = next_at_or_after(driver_period_us);
+      if (tick > t && next_at_or_after(trajectory_period_us) >= tick)
+        while (const DeliveredDetections* d = rig.next_detections(tick)) {
+          if (!slam->input_final(*d, t)) break;
+          slam->process_ahead(*rig.take_detections(tick), tick);
+        }
+    }
     if (t >= hard_stop_us) {
       dnf_override = "no verdict within the event's time limit";
       break;

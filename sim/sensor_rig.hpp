@@ -71,6 +71,12 @@ class SensorRig {
 
   /// The cone detection frames whose latency has passed by time t, oldest first.
   std::optional<DeliveredDetections> take_detections(core::TimeUs t);
+  /// The frame take_detections(t) would return next, without taking it (null if none; before
+  /// the cone tracker has run on it).
+  const DeliveredDetections* next_detections(core::TimeUs t) const {
+    return cone_queue_.empty() || cone_queue_.front().first > t ? nullptr
+                                                                : &cone_queue_.front().second;
+  }
 
   bool cone_sensor_on() const { return cone_sensor_ != nullptr; }
   bool lidar_on() const { return lidar_ != nullptr; }

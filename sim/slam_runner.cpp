@@ -1,6 +1,7 @@
 #include "sim/slam_runner.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -87,8 +88,15 @@ struct SlamRunner::Lane {
   // an update running on the lane's thread (or done), and when its estimate takes effect
   struct Pending {
     TimeUs due_us;
+    // the tick that takes the frame; processed ahead of it (process_ahead) or at it
+    TimeUs tick_us;
+    bool ahead;
     DeliveredDetections frame;
     core::Pose2 odometry_delta;
+    // the input, and who runs it: the lane's thread, or the loop itself if the thread has not
+    // started it when it is due (whoever sets the flag first)
+    slam::SlamInput input;
+    std::shared_ptr<std::atomic<bool>> claimed;
     std::future<UpdateResult> result;
   };
 
@@ -121,7 +129,10 @@ struct SlamRunner::Lane {
   SlamScorer scorer;
   std::deque<Pending> pending;
   core::Estimate last_estimate;
-  // last member: its jobs use the backend, so it stops before the members above go
+  // the scoring posted to the thread (score, note_cones_in_view), checked in finish()
+  std::deque<std::future<void>> scoring;
+  // last member: its jobs use the backend and the scorer, so it stops before the members
+  // above go
   std::unique_ptr<WorkerThread> thread;
 };
 
@@ -168,7 +179,8 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
       lane->scorer.set_prior_map_identities();
     }
     lane->last_estimate = lane->backend->estimate();
-    if (!lane->driving || latency_us_ > 0) lane->thread = std::make_unique<WorkerThread>();
+    // the driving lane's thread runs the updates with a latency and those processed ahead
+    lane->thread = std::make_unique<WorkerThread>();
     lanes_.push_back(std::move(lane));
   }
   odometry_.reset(0);
@@ -180,35 +192,68 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
 SlamRunner::~SlamRunner() = default;
 
 void SlamRunner::step(TimeUs t, const VehicleSim& car) {
-  // the true cones the perception could see from the true pose, every kInViewEveryUs
-  if (t % kInViewEveryUs == 0)
-    for (auto& lane : lanes_) lane->scorer.note_cones_in_view(car.truth().pose);
+  // the true cones the perception could see from the true pose, every kInViewEveryUs (on the
+  // lanes' threads, in order with the scoring of the updates)
+  if (t % kInViewEveryUs == 0) {
+    const core::Pose2 pose = car.truth().pose;
+    for (auto& lane_ptr : lanes_) {
+      Lane& lane = *lane_ptr;
+      lane.scoring.push_back(
+          lane.thread->post([&lane, pose] { lane.scorer.note_cones_in_view(pose); }));
+    }
+  }
   feed_.step(t, car);
+  forward_.t = -1;
 }
 
-void SlamRunner::process(const DeliveredDetections& frame, TimeUs now) {
+slam::SlamInput SlamRunner::next_input(const DeliveredDetections& frame) {
   // the back-ends' input: the odometry up to the frame's stamp and its cones, the same for all
   const TimeUs stamp = frame.observations.stamp;
   feed_.feed(odometry_, stamp);
-  const slam::SlamInput input{odometry_.take_delta(stamp), frame.observations, {}};
+  slam::SlamInput input{odometry_.take_delta(stamp), frame.observations, {}};
+  forward_.t = -1;
   frame_odometry_.push_back({stamp, frame_odometry_.back().second.compose(input.odometry.delta)});
+  return input;
+}
+
+void SlamRunner::post(const DeliveredDetections& frame, const slam::SlamInput& input,
+                      TimeUs tick, bool ahead) {
   for (auto& lane_ptr : lanes_) {
     Lane& lane = *lane_ptr;
     // the labels go only to a lane with the ideal association (an ablation)
     slam::SlamInput lane_input = input;
     if (lane.ideal) lane_input.true_ids = frame.labels.cone_id;
-    if (!lane.thread) {
+    if (!ahead && lane.driving && latency_us_ == 0) {
+      // at once; an update processed ahead for an earlier tick was taken in by catch_up()
+      if (!lane.pending.empty())
+        throw std::logic_error("SLAM: a frame processed while an earlier one is running");
       take_in(lane, frame, lane.run(lane_input));
       continue;
     }
     // on the lane's thread (one update at a time, in order)
-    std::future<UpdateResult> result =
-        lane.thread->post([&lane, lane_input] { return lane.run(lane_input); });
-    lane.pending.push_back({now + latency_us_, frame, input.odometry.delta, std::move(result)});
+    auto claimed = std::make_shared<std::atomic<bool>>(false);
+    std::future<UpdateResult> result = lane.thread->post([&lane, lane_input, claimed] {
+      return claimed->exchange(true) ? UpdateResult{} : lane.run(lane_input);
+    });
+    lane.pending.push_back({tick + latency_us_, tick, ahead, frame, input.odometry.delta,
+                            lane_input, std::move(claimed), std::move(result)});
   }
 }
 
+void SlamRunner::process(const DeliveredDetections& frame, TimeUs now) {
+  post(frame, next_input(frame), now, false);
+}
+
+bool SlamRunner::input_final(const DeliveredDetections& frame, TimeUs now) const {
+  return frame.observations.stamp + feed_.max_latency_us() <= now;
+}
+
+void SlamRunner::process_ahead(const DeliveredDetections& frame, TimeUs tick) {
+  post(frame, next_input(frame), tick, true);
+}
+
 void SlamRunner::catch_up(TimeUs t) {
+  last_tick_us_ = t;
   for (auto& lane_ptr : lanes_) {
     Lane& lane = *lane_ptr;
     while (!lane.pending.empty()) {
@@ -216,10 +261,15 @@ void SlamRunner::catch_up(TimeUs t) {
       // the driving lane waits for its latency; a shadow's finished updates are scored as
       // they come (in order, so the figures do not depend on when)
       const bool ready = lane.driving ? update.due_us <= t
-                                      : update.result.wait_for(std::chrono::seconds(0)) ==
-                                            std::future_status::ready;
+                                      : update.tick_us <= t &&
+                                            update.result.wait_for(std::chrono::seconds(0)) ==
+                                                std::future_status::ready;
       if (!ready) break;
-      take_in(lane, update.frame, update.result.get());
+      // a due update the lane's thread has not started (a busy machine keeps it waiting) runs
+      // here; only the last one pending, so that no later update can run beside it
+      const bool here =
+          lane.driving && lane.pending.size() == 1 && !update.claimed->exchange(true);
+      take_in(lane, std::move(update.frame), here ? lane.run(update.input) : update.result.get());
       lane.pending.pop_front();
     }
   }
@@ -228,53 +278,77 @@ void SlamRunner::catch_up(TimeUs t) {
 void SlamRunner::finish() {
   for (auto& lane_ptr : lanes_) {
     Lane& lane = *lane_ptr;
-    for (; !lane.pending.empty(); lane.pending.pop_front())
-      take_in(lane, lane.pending.front().frame, lane.pending.front().result.get());
+    for (; !lane.pending.empty(); lane.pending.pop_front()) {
+      Lane::Pending& update = lane.pending.front();
+      UpdateResult result = update.result.get();
+      // processed ahead for a tick the run did not reach: the car never had this frame
+      if (update.ahead && update.tick_us > last_tick_us_) continue;
+      take_in(lane, std::move(update.frame), std::move(result));
+    }
+    // the scoring done (an exception in it surfaces here)
+    for (; !lane.scoring.empty(); lane.scoring.pop_front()) lane.scoring.front().get();
   }
 }
 
-void SlamRunner::take_in(Lane& lane, const DeliveredDetections& frame, const UpdateResult& update) {
+void SlamRunner::take_in(Lane& lane, DeliveredDetections frame, UpdateResult update) {
   lane.last_estimate = update.estimate;
-  SlamScorer::Update u;
-  u.stamp = frame.observations.stamp;
-  u.true_pose = frame.capture_pose;
-  u.observations = &frame.observations;
-  u.true_ids = &frame.labels.cone_id;
-  u.estimate = &update.estimate;
-  u.associations = &update.associations;
-  u.loop_closures = update.loop_closures;
-  u.wall_ms = update.wall_ms;
-  u.cpu_ms = update.cpu_ms;
-  u.association_us = update.association_us;
-  lane.scorer.score(u);
-  if (!lane.driving) return;
-  last_estimate_ = update.estimate;
-  last_observations_ = frame.observations;
-  last_frame_pose_ = last_estimate_.pose;
+  if (lane.driving) {
+    last_estimate_ = update.estimate;
+    last_observations_ = frame.observations;
+    last_frame_pose_ = last_estimate_.pose;
+  }
+  // the scoring on the lane's thread: nothing in the loop reads it
+  lane.scoring.push_back(lane.thread->post(
+      [&lane, frame = std::move(frame), update = std::move(update)] {
+        SlamScorer::Update u;
+        u.stamp = frame.observations.stamp;
+        u.true_pose = frame.capture_pose;
+        u.observations = &frame.observations;
+        u.true_ids = &frame.labels.cone_id;
+        u.estimate = &update.estimate;
+        u.associations = &update.associations;
+        u.loop_closures = update.loop_closures;
+        u.wall_ms = update.wall_ms;
+        u.cpu_ms = update.cpu_ms;
+        u.association_us = update.association_us;
+        lane.scorer.score(u);
+      }));
+}
+
+void SlamRunner::wait_for_lanes() const {
+  for (const auto& lane : lanes_) lane->thread->wait_idle();
+}
+
+const SlamRunner::Forward& SlamRunner::forward(TimeUs t) const {
+  if (forward_.t == t) return forward_;
+  slam::Odometry forward = odometry_;
+  feed_.feed_copy(forward, t);
+  forward_.delta = forward.take_delta(t);
+  forward_.speed_mps = forward.speed_mps();
+  forward_.mean_speed_mps = forward.mean_speed_mps();
+  forward_.yaw_rate_rps = forward.yaw_rate_rps();
+  forward_.t = t;
+  return forward_;
 }
 
 core::Estimate SlamRunner::estimate_now(TimeUs t, slam::frontend::SweepMotion* motion) const {
   // carry the last estimate forward with the odometry delivered since its frame
-  slam::Odometry forward = odometry_;
-  feed_.feed_copy(forward, t);
-  const slam::OdometryDelta delta = forward.take_delta(t);
+  const Forward& forward = this->forward(t);
   // the updates still running: the estimate before them, moved on by their odometry
   core::Pose2 pose = last_estimate_.pose;
   for (const Lane::Pending& update : lanes_.front()->pending)
     pose = pose.compose(update.odometry_delta);
   core::Estimate e = last_estimate_;
   e.stamp = t;
-  e.pose = pose.compose(delta.delta);
-  e.speed_mps = forward.speed_mps();
-  e.yaw_rate_rps = forward.yaw_rate_rps();
-  if (motion) *motion = {forward.mean_speed_mps(), e.yaw_rate_rps};
+  e.pose = pose.compose(forward.delta.delta);
+  e.speed_mps = forward.speed_mps;
+  e.yaw_rate_rps = forward.yaw_rate_rps;
+  if (motion) *motion = {forward.mean_speed_mps, e.yaw_rate_rps};
   return e;
 }
 
 core::Pose2 SlamRunner::odometry_pose_now(TimeUs t) const {
-  slam::Odometry forward = odometry_;
-  feed_.feed_copy(forward, t);
-  return frame_odometry_.back().second.compose(forward.take_delta(t).delta);
+  return frame_odometry_.back().second.compose(forward(t).delta.delta);
 }
 
 core::ConeObservations SlamRunner::observations_at(const core::Pose2& now) const {
@@ -285,10 +359,12 @@ core::ConeObservations SlamRunner::observations_at(const core::Pose2& now) const
 }
 
 nlohmann::json SlamRunner::metrics() const {
+  wait_for_lanes();
   return lanes_.front()->scorer.metrics(lanes_.front()->last_estimate);
 }
 
 nlohmann::json SlamRunner::all_metrics() const {
+  wait_for_lanes();
   nlohmann::json out = nlohmann::json::object();
   for (const auto& lane : lanes_) {
     nlohmann::json m = lane->scorer.metrics(lane->last_estimate);
@@ -319,11 +395,13 @@ std::string SlamRunner::name() const {
 }
 
 const SlamScorer& SlamRunner::scorer() const {
+  wait_for_lanes();
   return lanes_.front()->scorer;
 }
 
 std::vector<core::Pose2> SlamRunner::lane_poses(size_t lane_index, const std::vector<TimeUs>& t,
                                                 const std::vector<core::Pose2>& odometry) const {
+  wait_for_lanes();
   // frame k of the lane's scorer is frame k + 1 of frame_odometry_ (entry 0 is the start)
   const SlamScorer& scorer = lanes_[lane_index]->scorer;
   const auto& stamps = scorer.stamps();
@@ -341,6 +419,7 @@ std::vector<core::Pose2> SlamRunner::lane_poses(size_t lane_index, const std::ve
 }
 
 void SlamRunner::write_report(const std::filesystem::path& dir) const {
+  wait_for_lanes();
   std::vector<LaneFigures> figures;
   for (const auto& lane : lanes_) {
     write_slam_figures(lane->scorer, track_, lane->last_estimate, dir,

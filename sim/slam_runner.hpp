@@ -38,10 +38,24 @@ class SlamRunner {
   /// Samples the vehicle sensors due at t.
   void step(core::TimeUs t, const VehicleSim& car);
 
+  /// Whether step(t) reads the IMU: the physics step ending at t must compute the sensors.
+  bool imu_due(core::TimeUs t) const { return feed_.imu_due(t); }
+
   /// Runs every lane on a cone frame delivered at time now (true pose at capture for the
   /// scoring): the driving lane at once, or with a SLAM latency on its thread, its estimate
   /// taking effect in catch_up() once the latency has passed; the shadows on their threads.
   void process(const DeliveredDetections& frame, core::TimeUs now);
+
+  /// Whether a frame's input is final at time now: every vehicle sensor sample stamped up to
+  /// the frame has arrived (the odometry process() would give it is the one it gets now).
+  bool input_final(const DeliveredDetections& frame, core::TimeUs now) const;
+
+  /// process(frame, tick) started ahead of the tick, on the lanes' threads, for a frame whose
+  /// input is final: nothing else reaches SLAM before the tick (no process(), estimate_now()
+  /// or odometry_pose_now() in between), so the update runs while the physics steps on and
+  /// takes effect in catch_up(tick) exactly as if it had run there. One the run never reaches
+  /// the tick of is dropped in finish().
+  void process_ahead(const DeliveredDetections& frame, core::TimeUs tick);
 
   /// Takes in the driving updates whose latency has passed by time t, oldest first, and the
   /// shadow updates already done (call before process() and estimate_now() at each tick).
@@ -89,7 +103,25 @@ class SlamRunner {
  private:
   struct Lane;
   struct UpdateResult;
-  void take_in(Lane& lane, const DeliveredDetections& frame, const UpdateResult& update);
+  void take_in(Lane& lane, DeliveredDetections frame, UpdateResult update);
+  // waits until every lane's thread has run what was posted (the scorers are up to date)
+  void wait_for_lanes() const;
+  // the odometry carried forward from the last frame to time t (estimate_now and
+  // odometry_pose_now at the same tick share it)
+  struct Forward {
+    core::TimeUs t = -1;
+    slam::OdometryDelta delta;
+    double speed_mps = 0.0;
+    double mean_speed_mps = 0.0;
+    double yaw_rate_rps = 0.0;
+  };
+  const Forward& forward(core::TimeUs t) const;
+  // the lanes' common input for a frame (takes the odometry up to the frame's stamp)
+  slam::SlamInput next_input(const DeliveredDetections& frame);
+  // runs every lane on the input: the driving lane at once when it has no latency and the
+  // tick is now, otherwise on the lanes' threads, taking effect at tick (plus the latency)
+  void post(const DeliveredDetections& frame, const slam::SlamInput& input, core::TimeUs tick,
+            bool ahead);
 
   const tracks::Track& track_;
   VehicleSensorFeed feed_;
@@ -101,6 +133,11 @@ class SlamRunner {
   core::Estimate last_estimate_;
   core::ConeObservations last_observations_;
   core::Pose2 last_frame_pose_;
+  // the last tick catch_up() ran at: an update processed ahead for a later tick never took
+  // effect
+  core::TimeUs last_tick_us_ = -1;
+  // forward(t)'s last result; cleared when a sample or a frame changes the odometry's input
+  mutable Forward forward_;
   // the driving lane first; each lane's jobs use its back-end, so the lanes (and their
   // threads) go before the members above
   std::vector<std::unique_ptr<Lane>> lanes_;

@@ -16,17 +16,28 @@ VehicleSensorFeed::VehicleSensorFeed(uint64_t seed)
       wheels_(sensors::WheelEncoderConfig{}, core::derive_seed(seed, kWheelStream)),
       steering_(sensors::SteeringSensorConfig{}, core::derive_seed(seed, kSteeringStream)) {}
 
+bool VehicleSensorFeed::imu_due(core::TimeUs t) const {
+  return t % imu_.config().timing.period_us() == 0;
+}
+
+core::TimeUs VehicleSensorFeed::max_latency_us() const {
+  return std::max({imu_.config().timing.latency_us(), wheels_.config().timing.latency_us(),
+                   steering_.config().timing.latency_us()});
+}
+
 void VehicleSensorFeed::step(core::TimeUs t, const VehicleSim& car) {
   // sample what is due; samples arrive after their latency
-  const bool imu_due = t % imu_.config().timing.period_us() == 0;
+  const bool imu_due = this->imu_due(t);
   const bool wheels_due = t % wheels_.config().timing.period_us() == 0;
   const bool steer_due = t % steering_.config().timing.period_us() == 0;
   if (imu_due || wheels_due || steer_due) {
     const VehicleTruth truth = car.truth();
     sensors::VehicleSensorTruth st;
     st.stamp = t;
-    st.angular_rate_rps = car.imu_angular_rate();
-    st.specific_force_mps2 = car.imu_specific_force();
+    if (imu_due) {
+      st.angular_rate_rps = car.imu_angular_rate();
+      st.specific_force_mps2 = car.imu_specific_force();
+    }
     st.wheel_angle_rad = truth.wheel_spin_rad;
     st.steer_rad = truth.steer_rad;
     if (imu_due) {

@@ -21,6 +21,12 @@ class VehicleSensorFeed {
   /// Samples the sensors due at t and delivers what has arrived by t.
   void step(core::TimeUs t, const VehicleSim& car);
 
+  /// Whether the IMU samples at t: the physics step that ends at t must compute the sensors.
+  bool imu_due(core::TimeUs t) const;
+
+  /// The longest latency of the sensors: a sample stamped t has arrived by t + this.
+  core::TimeUs max_latency_us() const;
+
   /// Feeds the delivered samples stamped up to `stamp` into the odometry and drops them.
   void feed(slam::Odometry& odometry, core::TimeUs stamp);
 

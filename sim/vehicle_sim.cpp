@@ -91,7 +91,13 @@ VehicleSim::~VehicleSim() {
 
 double VehicleSim::timestep_s() const { return model_->opt.timestep; }
 
-void VehicleSim::step(const core::VehicleCommand& command) {
+void VehicleSim::step(const core::VehicleCommand& command, bool imu) {
+  // the sensors (IMU, encoders) are outputs only: skipping them leaves the motion unchanged
+  if (imu)
+    model_->opt.disableflags &= ~mjDSBL_SENSOR;
+  else
+    model_->opt.disableflags |= mjDSBL_SENSOR;
+  imu_fresh_ = imu;
   mj_step1(model_, data_);
   apply_controls(command);
   mj_step2(model_, data_);
@@ -167,12 +173,19 @@ void VehicleSim::apply_controls(const core::VehicleCommand& command) {
   }
 }
 
+void VehicleSim::require_imu() const {
+  if (!imu_fresh_)
+    throw std::logic_error("VehicleSim: IMU read after a step that skipped the sensors");
+}
+
 Eigen::Vector3d VehicleSim::imu_angular_rate() const {
+  require_imu();
   const mjtNum* g = data_->sensordata + gyro_adr_;
   return {g[0], g[1], g[2]};
 }
 
 Eigen::Vector3d VehicleSim::imu_specific_force() const {
+  require_imu();
   const mjtNum* a = data_->sensordata + accel_adr_;
   return {a[0], a[1], a[2]};
 }
@@ -222,7 +235,7 @@ std::vector<std::pair<double, double>> measure_yaw_gain(const vehicle_models::Ve
         yaw += std::abs(tr.yaw_rate_rps);
         kinematic += std::hypot(tr.vx_mps, tr.vy_mps) * std::tan(steer) / params.wheelbase_m;
       }
-      car.step({steer, std::clamp(3.0 * (kSpeedMps - tr.vx_mps), -5.0, 5.0), false});
+      car.step({steer, std::clamp(3.0 * (kSpeedMps - tr.vx_mps), -5.0, 5.0), false}, false);
       t += car.timestep_s();
     }
     table.emplace_back(steer, kinematic > 0.0 ? yaw / kinematic : 1.0);

@@ -45,7 +45,9 @@ std::string build_mjcf(const VehicleParams& p, const MjcfOptions& o) {
   x << "<mujoco model=\"conesim-car\">\n"
     << "  <compiler angle=\"radian\"/>\n"
     << "  <option timestep=\"" << o.timestep_s
-    << "\" cone=\"elliptic\" impratio=\"1\" integrator=\"Euler\" gravity=\"0 0 -9.81\"/>\n"
+    << "\" cone=\"elliptic\" impratio=\"1\" integrator=\"Euler\" gravity=\"0 0 -9.81\" "
+    // the tyres touch only the ground: the four pairs below, no broad phase
+    << "collision=\"predefined\"/>\n"
     << "  <size nconmax=\"32\" njmax=\"160\" nstack=\"20000\"/>\n"
     << "  <visual>\n"
     << "    <global offwidth=\"" << o.offscreen_width_px << "\" offheight=\""
@@ -120,6 +122,16 @@ std::string build_mjcf(const VehicleParams& p, const MjcfOptions& o) {
   }
   x << "    </body>\n"
     << "  </worldbody>\n";
+
+  // the contacts: each tyre on the ground, with the parameters the geoms' defaults mix to
+  // (condim 3, the tyre friction sliding, the small torsional and rolling friction)
+  x << "  <contact>\n";
+  for (int c = 0; c < 4; ++c) {
+    x << "    <pair geom1=\"ground\" geom2=\"tyre_" << MjcfNames::kCorners[c]
+      << "\" condim=\"3\" friction=\"" << p.tyre_friction << " " << p.tyre_friction
+      << " 0.005 0.0001 0.0001\" solimp=\"0 0.95 0.001 0.5 2\" solref=\"0.02 1\"/>\n";
+  }
+  x << "  </contact>\n";
 
   // actuators: steering servos at the front, one motor per wheel (drive and brake summed)
   x << "  <actuator>\n";

@@ -95,5 +95,59 @@ TEST(SlamRunner, FinishTakesInTheUpdatesStillRunning) {
   EXPECT_FALSE(late.slam.estimate_now(late.now).map.empty());
 }
 
+TEST(SlamRunner, AnUpdateProcessedAheadTakesEffectAtItsTickAsIfRunThere) {
+  // frames captured at t and taken at the next tick, 50 ms later: processed there, or ahead
+  // as soon as their input is final (the vehicle sensors' samples arrive 2 ms late)
+  StandingCar at_tick("0"), ahead("0");
+  for (TimeUs t : {100'000, 200'000, 300'000}) {
+    const TimeUs tick = t + 50'000;
+    at_tick.run_sensors_to(tick);
+    at_tick.slam.catch_up(tick);
+    at_tick.slam.process(at_tick.frame(t), tick);
+
+    ahead.run_sensors_to(t);
+    const DeliveredDetections frame = ahead.frame(t);
+    ASSERT_FALSE(ahead.slam.input_final(frame, t));
+    ahead.run_sensors_to(t + 2000);
+    ASSERT_TRUE(ahead.slam.input_final(frame, t + 2000));
+    ahead.slam.process_ahead(frame, tick);
+    ahead.run_sensors_to(tick - 2000);
+    ahead.slam.catch_up(tick - 2000);
+    // not a step before its tick: the third frame confirms the cones
+    if (t == 300'000) {
+      EXPECT_TRUE(ahead.slam.estimate_now(tick - 2000).map.empty());
+    }
+    ahead.run_sensors_to(tick);
+    ahead.slam.catch_up(tick);
+  }
+  const core::Estimate expected = at_tick.slam.estimate_now(350'000);
+  const core::Estimate got = ahead.slam.estimate_now(350'000);
+  ASSERT_GE(expected.map.size(), 4u);
+  ASSERT_EQ(got.map.size(), expected.map.size());
+  for (size_t i = 0; i < got.map.size(); ++i) {
+    EXPECT_EQ(got.map[i].position, expected.map[i].position);
+    EXPECT_EQ(got.map[i].covariance, expected.map[i].covariance);
+  }
+  EXPECT_EQ(got.pose.x, expected.pose.x);
+  EXPECT_EQ(got.pose.y, expected.pose.y);
+  EXPECT_EQ(got.pose.yaw, expected.pose.yaw);
+  EXPECT_EQ(ahead.slam.odometry_pose_now(350'000).x, at_tick.slam.odometry_pose_now(350'000).x);
+}
+
+TEST(SlamRunner, AnUpdateProcessedAheadForATickNeverReachedIsDropped) {
+  StandingCar ahead("0");
+  for (TimeUs t : {100'000, 200'000}) {
+    ahead.run_sensors_to(t + 2000);
+    ahead.slam.process_ahead(ahead.frame(t), t + 50'000);
+    ahead.run_sensors_to(t + 50'000);
+    ahead.slam.catch_up(t + 50'000);
+  }
+  // the run ends before the third frame's tick
+  ahead.run_sensors_to(302'000);
+  ahead.slam.process_ahead(ahead.frame(300'000), 350'000);
+  ahead.slam.finish();
+  EXPECT_EQ(ahead.slam.metrics()["updates"].get<int>(), 2);
+}
+
 }  // namespace
 }  // namespace conesim::sim
