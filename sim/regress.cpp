@@ -389,6 +389,14 @@ RegressionPlan plan_regression(const fs::path& self, const RegressOptions& o) {
   return plan;
 }
 
+// what `conesim run` says when its pre-run check refuses a layout
+constexpr const char* kNotDrivable = "not drivable by this car";
+
+// a row's verdict as the summaries spell it
+const char* verdict_name(const RunRow& r) {
+  return r.passed ? "pass" : r.refused ? "refused" : "fail";
+}
+
 RunRow make_row(const RegressionRun& run, const json& m, int exit_code,
                 const std::string& log_tail) {
   RunRow r;
@@ -404,6 +412,7 @@ RunRow make_row(const RegressionRun& run, const json& m, int exit_code,
         "no metrics.json: exit " + std::to_string(exit_code) +
         (exit_code > 128 ? " (signal " + std::to_string(exit_code - 128) + ")" : "") +
         (log_tail.empty() ? "" : ": " + log_tail));
+    r.refused = log_tail.find(kNotDrivable) != std::string::npos;
     return r;
   }
   if (r.track.empty()) r.track = m.value("track", std::string());
@@ -471,7 +480,7 @@ json row_to_json(const RunRow& r) {
           {"track", r.track},
           {"seed", r.seed},
           {"dir", r.dir},
-          {"verdict", r.passed ? "pass" : "fail"},
+          {"verdict", verdict_name(r)},
           {"reasons", r.reasons},
           {"dnf_reason", r.dnf_reason},
           {"exit_code", r.exit_code},
@@ -503,6 +512,7 @@ RunRow row_from_json(const json& j) {
   r.seed = j.value("seed", 1ULL);
   r.dir = j.value("dir", std::string());
   r.passed = j.value("verdict", std::string()) == "pass";
+  r.refused = j.value("verdict", std::string()) == "refused";
   r.reasons = j.value("reasons", std::vector<std::string>());
   r.dnf_reason = j.value("dnf_reason", std::string());
   r.exit_code = j.value("exit_code", 0);
@@ -531,8 +541,10 @@ RunRow row_from_json(const json& j) {
 
 void sort_failures_first(std::vector<RunRow>& rows) {
   std::stable_sort(rows.begin(), rows.end(), [](const RunRow& a, const RunRow& b) {
-    const int ra = a.passed ? (a.regressions.empty() ? 2 : 1) : 0;
-    const int rb = b.passed ? (b.regressions.empty() ? 2 : 1) : 0;
+    // failures, regressions, refusals, then the runs that passed
+    auto rank = [](const RunRow& r) { return r.passed ? (r.regressions.empty() ? 3 : 1) : r.refused ? 2 : 0; };
+    const int ra = rank(a);
+    const int rb = rank(b);
     return ra < rb;
   });
 }
@@ -641,10 +653,11 @@ std::string describe_noise(const BaselineNoise& n) {
 json summary_json(const std::vector<RunRow>& rows, const RegressionPlan& plan,
                   const RegressOptions& o, double wall_s, const BaselineComparison* comparison) {
   const BaselineNoise n;
-  int passed = 0, regressed = 0;
+  int passed = 0, regressed = 0, refused = 0;
   json runs = json::array();
   for (const RunRow& r : rows) {
     passed += r.passed;
+    refused += r.refused;
     regressed += !r.regressions.empty();
     runs.push_back(row_to_json(r));
   }
@@ -667,7 +680,8 @@ json summary_json(const std::vector<RunRow>& rows, const RegressionPlan& plan,
           {"totals",
            {{"runs", rows.size()},
             {"passed", passed},
-            {"failed", static_cast<int>(rows.size()) - passed},
+            {"failed", static_cast<int>(rows.size()) - passed - refused},
+            {"refused", refused},
             {"regressed", regressed},
             {"skipped_tracks", plan.skipped.size()},
             {"event_mismatches_left_out", plan.event_mismatches}}},
@@ -690,7 +704,11 @@ json summary_json(const std::vector<RunRow>& rows, const RegressionPlan& plan,
 std::string junit_xml(const std::vector<RunRow>& rows, double wall_s,
                       const BaselineComparison* comparison) {
   int failures = 0;
-  for (const RunRow& r : rows) failures += !r.passed || !r.regressions.empty();
+  int skipped = 0;
+  for (const RunRow& r : rows) {
+    failures += (!r.passed && !r.refused) || !r.regressions.empty();
+    skipped += r.refused && r.regressions.empty();
+  }
   const bool medians_regressed = comparison && !comparison->median_regressions.empty();
   failures += medians_regressed;
   const size_t tests = rows.size() + (comparison ? 1 : 0);
@@ -699,7 +717,7 @@ std::string junit_xml(const std::vector<RunRow>& rows, double wall_s,
     << "<testsuites name=\"conesim regress\" tests=\"" << tests << "\" failures=\"" << failures
     << "\" errors=\"0\" time=\"" << fixed(wall_s, 3) << "\">\n"
     << "  <testsuite name=\"conesim regress\" tests=\"" << tests << "\" failures=\"" << failures
-    << "\" errors=\"0\" skipped=\"0\" time=\"" << fixed(wall_s, 3) << "\" timestamp=\""
+    << "\" errors=\"0\" skipped=\"" << skipped << "\" time=\"" << fixed(wall_s, 3) << "\" timestamp=\""
     << utc_now().substr(0, 19) << "\">\n";
   for (const RunRow& r : rows) {
     const std::string track = r.track.empty() ? "scenario track" : r.track;
@@ -708,6 +726,11 @@ std::string junit_xml(const std::vector<RunRow>& rows, double wall_s,
       << fixed(std::isfinite(r.wall_time_s) ? r.wall_time_s : 0.0, 3) << "\"";
     if (r.passed && r.regressions.empty()) {
       x << "/>\n";
+      continue;
+    }
+    if (r.refused && r.regressions.empty()) {
+      x << ">\n      <skipped message=\"" << xml_escape(join(r.reasons, "; ")) << "\"/>\n"
+        << "    </testcase>\n";
       continue;
     }
     std::vector<std::string> why = r.passed ? std::vector<std::string>{} : r.reasons;
@@ -738,15 +761,19 @@ std::string junit_xml(const std::vector<RunRow>& rows, double wall_s,
 std::string summary_html(const std::vector<RunRow>& rows, const RegressionPlan& plan,
                          const RegressOptions& o, double wall_s,
                          const BaselineComparison* comparison) {
-  int passed = 0;
-  for (const RunRow& r : rows) passed += r.passed;
-  const bool all_good =
-      passed == static_cast<int>(rows.size()) && (!comparison || comparison->regressions.empty());
+  int passed = 0, refused = 0;
+  for (const RunRow& r : rows) {
+    passed += r.passed;
+    refused += r.refused;
+  }
+  const bool all_good = passed + refused == static_cast<int>(rows.size()) &&
+                        (!comparison || comparison->regressions.empty());
   std::ostringstream h;
   h << "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>conesim regress</title>\n"
     << "<style>" << report_css() << "</style></head><body>\n<h1>conesim regress</h1>\n"
     << "<div class=\"banner " << (all_good ? "pass" : "fail") << "\">" << passed << " of "
     << rows.size() << " passed"
+    << (refused ? ", " + std::to_string(refused) + " refused (not drivable by this car)" : "")
     << (comparison ? ", " + std::to_string(comparison->regressions.size()) + " regressions" : "")
     << "</div>\n<p><code>" << html_escape(o.command_line) << "</code><br>" << fixed(wall_s, 0)
     << " s wall time with " << o.jobs << " jobs, conesim " << CONESIM_VERSION << "</p>\n";
@@ -785,10 +812,12 @@ std::string summary_html(const std::vector<RunRow>& rows, const RegressionPlan& 
     if (!where.empty()) penalties += ": " + where;
     const fs::path report = fs::path(r.dir) / "report.html";
     h << "<tr"
-      << (!r.passed   ? " class=\"failed\""
+      << (r.refused ? " class=\"regressed\""
+          : !r.passed ? " class=\"failed\""
           : regressed ? " class=\"regressed\""
                       : "")
-      << "><td>" << (r.passed ? (regressed ? "pass (regressed)" : "pass") : "<b>FAIL</b>")
+      << "><td>"
+      << (r.passed ? (regressed ? "pass (regressed)" : "pass") : r.refused ? "refused" : "<b>FAIL</b>")
       << "</td><td>" << html_escape(r.scenario) << "</td><td>"
       << html_escape(r.track.empty() ? "scenario track" : r.track) << "</td><td>" << r.seed
       << "</td><td>" << html_escape(join(why, "; ")) << "</td><td>" << html_escape(penalties)
@@ -812,7 +841,10 @@ void print_table(const std::vector<RunRow>& rows, std::ostream& out) {
                                                   "best_lap", "final_s", "hit", "off", "map_rmse",
                                                   "rtf"}};
   for (const RunRow& r : rows)
-    cells.push_back({r.passed ? (r.regressions.empty() ? "ok" : "REGRESSED") : "FAIL", r.scenario,
+    cells.push_back({r.passed    ? (r.regressions.empty() ? "ok" : "REGRESSED")
+                     : r.refused ? "refused"
+                                 : "FAIL",
+                     r.scenario,
                      r.track.empty() ? "-" : r.track, std::to_string(r.seed),
                      std::to_string(r.laps), fixed(r.best_lap_s, 2), fixed(r.final_time_s, 2),
                      std::to_string(r.cones_hit), std::to_string(r.off_course),
@@ -888,7 +920,7 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
     rows[i] = make_row(runs[i], m, exit_codes[i], tail);
     ++done_count;
     progress << "[" << done_count << "/" << runs.size() << "] " << runs[i].id() << ": "
-             << (rows[i].passed ? "pass" : "FAIL") << "\n";
+             << (rows[i].passed ? "pass" : rows[i].refused ? "refused" : "FAIL") << "\n";
   };
   while (next < runs.size() || !running.empty()) {
     while (next < runs.size() && static_cast<int>(running.size()) < std::max(o.jobs, 1)) {
@@ -934,9 +966,13 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
   std::ofstream(o.out_dir / "junit.xml") << junit_xml(rows, wall_s, c);
   std::ofstream(o.out_dir / "summary.html") << summary_html(rows, plan, o, wall_s, c);
   print_table(rows, out);
-  int failed = 0;
-  for (const RunRow& r : rows) failed += !r.passed;
-  out << rows.size() - failed << " passed, " << failed << " failed";
+  int failed = 0, refused = 0;
+  for (const RunRow& r : rows) {
+    failed += !r.passed && !r.refused;
+    refused += r.refused;
+  }
+  out << rows.size() - failed - refused << " passed, " << failed << " failed";
+  if (refused) out << ", " << refused << " refused (not drivable by this car)";
   if (c)
     out << ", " << c->regressions.size() << " regressions, " << c->missing.size()
         << " baseline runs missing, " << c->added.size() << " new";

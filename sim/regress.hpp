@@ -98,6 +98,11 @@ struct RunRow {
   unsigned long long seed = 1;
   std::string dir;
   bool passed = false;
+  /// Refused before it started: the pre-run check found the layout not drivable by this car
+  /// (the reasons say where and why). Listed apart, not a failure of the run: a layout the car
+  /// cannot drive says nothing of the stack under test; a run that passed in the baseline and is
+  /// refused now is still a regression.
+  bool refused = false;
   /// Every pass failure, or why the run has no verdict (crash, exit status).
   std::vector<std::string> reasons;
   std::string dnf_reason;

@@ -88,6 +88,35 @@ TEST(Regress, CrashWithoutMetricsFailsWithTheExitAndLogLine) {
   EXPECT_NE(r.reasons[0].find("terminate called"), std::string::npos);
 }
 
+TEST(Regress, LayoutRefusedByThePreRunCheckIsListedApartNotFailed) {
+  const std::string said =
+      "conesim: eufs/SmallCircle.csv: not drivable by this car: the yellow cone at (-2.9, -0.5) "
+      "stands under the car where it starts";
+  std::vector<RunRow> rows = {make_row(run("a", 1), metrics(true, 20.0), 0),
+                              make_row(run("b", 1), json(), 2, said),
+                              make_row(run("c", 1), json(), 2, "conesim: c.csv:3: x: expected")};
+  EXPECT_TRUE(rows[1].refused);
+  EXPECT_FALSE(rows[1].passed);
+  EXPECT_NE(rows[1].reasons.at(0).find("stands under the car"), std::string::npos);
+  EXPECT_FALSE(rows[2].refused);  // a malformed file is a failure
+  EXPECT_EQ(row_to_json(rows[1])["verdict"], "refused");
+  EXPECT_TRUE(row_from_json(row_to_json(rows[1])).refused);
+  // JUnit: the refusal is skipped with its reason, the malformed file a failure
+  const std::string x = junit_xml(rows, 1.0, nullptr);
+  EXPECT_NE(x.find("failures=\"1\""), std::string::npos);
+  EXPECT_NE(x.find("skipped=\"1\""), std::string::npos);
+  EXPECT_NE(x.find("<skipped message=\"no metrics.json: exit 2: " + said), std::string::npos);
+  // failures first, then refusals, then passes
+  sort_failures_first(rows);
+  EXPECT_EQ(rows[0].track, "c");
+  EXPECT_EQ(rows[1].track, "b");
+  EXPECT_EQ(rows[2].track, "a");
+  // a run that passed in the baseline and is refused now is a regression
+  const std::vector<RunRow> before = {make_row(run("b", 1), metrics(true, 20.0), 0)};
+  std::vector<RunRow> now = {make_row(run("b", 1), json(), 2, said)};
+  EXPECT_FALSE(compare_to_baseline(now, before).regressions.empty());
+}
+
 TEST(Regress, PassedMetricsButNonZeroExitIsAFailure) {
   const RunRow r = make_row(run("x", 1), metrics(true, 20.0), 3, "conesim: boom");
   EXPECT_FALSE(r.passed);
