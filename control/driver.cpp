@@ -361,11 +361,11 @@ struct Driver::Impl {
         mp.tracker = fast ? fast_tracker : tracker;
         mp.preview_s = preview_s;
         mp.curvature_span_m = 2.0 * kCurvatureSpanM;
-        const ManoeuvreChoice choice =
-            choose_manoeuvre(mp, est.pose, est.speed_mps, steer_now, path, here,
-                             [&](double v, double at) { return speed_command(v, at, speed_cap); },
-                             cones_near(est, input->observations, reach), cmd.steer_rad,
-                             previous ? &*previous : nullptr);
+        const ManoeuvreChoice choice = choose_manoeuvre(
+            mp, est.pose, est.speed_mps, steer_now, path, here,
+            [&](double v, double at) { return speed_command(v, at, speed_cap); },
+            cones_near(est, input->observations, reach), cmd.steer_rad,
+            previous ? &*previous : nullptr);
         manoeuvre_now = choice.manoeuvre;
         manoeuvre_stamp = est.stamp;
         cmd.steer_rad = choice.steer_rad;

@@ -542,7 +542,9 @@ RunRow row_from_json(const json& j) {
 void sort_failures_first(std::vector<RunRow>& rows) {
   std::stable_sort(rows.begin(), rows.end(), [](const RunRow& a, const RunRow& b) {
     // failures, regressions, refusals, then the runs that passed
-    auto rank = [](const RunRow& r) { return r.passed ? (r.regressions.empty() ? 3 : 1) : r.refused ? 2 : 0; };
+    auto rank = [](const RunRow& r) {
+      return r.passed ? (r.regressions.empty() ? 3 : 1) : r.refused ? 2 : 0;
+    };
     const int ra = rank(a);
     const int rb = rank(b);
     return ra < rb;
@@ -717,8 +719,8 @@ std::string junit_xml(const std::vector<RunRow>& rows, double wall_s,
     << "<testsuites name=\"conesim regress\" tests=\"" << tests << "\" failures=\"" << failures
     << "\" errors=\"0\" time=\"" << fixed(wall_s, 3) << "\">\n"
     << "  <testsuite name=\"conesim regress\" tests=\"" << tests << "\" failures=\"" << failures
-    << "\" errors=\"0\" skipped=\"" << skipped << "\" time=\"" << fixed(wall_s, 3) << "\" timestamp=\""
-    << utc_now().substr(0, 19) << "\">\n";
+    << "\" errors=\"0\" skipped=\"" << skipped << "\" time=\"" << fixed(wall_s, 3)
+    << "\" timestamp=\"" << utc_now().substr(0, 19) << "\">\n";
   for (const RunRow& r : rows) {
     const std::string track = r.track.empty() ? "scenario track" : r.track;
     x << "    <testcase classname=\"" << xml_escape(r.scenario) << "\" name=\""
@@ -812,12 +814,14 @@ std::string summary_html(const std::vector<RunRow>& rows, const RegressionPlan& 
     if (!where.empty()) penalties += ": " + where;
     const fs::path report = fs::path(r.dir) / "report.html";
     h << "<tr"
-      << (r.refused ? " class=\"regressed\""
+      << (r.refused   ? " class=\"regressed\""
           : !r.passed ? " class=\"failed\""
           : regressed ? " class=\"regressed\""
                       : "")
       << "><td>"
-      << (r.passed ? (regressed ? "pass (regressed)" : "pass") : r.refused ? "refused" : "<b>FAIL</b>")
+      << (r.passed    ? (regressed ? "pass (regressed)" : "pass")
+          : r.refused ? "refused"
+                      : "<b>FAIL</b>")
       << "</td><td>" << html_escape(r.scenario) << "</td><td>"
       << html_escape(r.track.empty() ? "scenario track" : r.track) << "</td><td>" << r.seed
       << "</td><td>" << html_escape(join(why, "; ")) << "</td><td>" << html_escape(penalties)
@@ -844,8 +848,7 @@ void print_table(const std::vector<RunRow>& rows, std::ostream& out) {
     cells.push_back({r.passed    ? (r.regressions.empty() ? "ok" : "REGRESSED")
                      : r.refused ? "refused"
                                  : "FAIL",
-                     r.scenario,
-                     r.track.empty() ? "-" : r.track, std::to_string(r.seed),
+                     r.scenario, r.track.empty() ? "-" : r.track, std::to_string(r.seed),
                      std::to_string(r.laps), fixed(r.best_lap_s, 2), fixed(r.final_time_s, 2),
                      std::to_string(r.cones_hit), std::to_string(r.off_course),
                      fixed(r.map_rmse_m, 3), fixed(r.real_time_factor, 0) + "x"});
@@ -920,7 +923,10 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
     rows[i] = make_row(runs[i], m, exit_codes[i], tail);
     ++done_count;
     progress << "[" << done_count << "/" << runs.size() << "] " << runs[i].id() << ": "
-             << (rows[i].passed ? "pass" : rows[i].refused ? "refused" : "FAIL") << "\n";
+             << (rows[i].passed    ? "pass"
+                 : rows[i].refused ? "refused"
+                                   : "FAIL")
+             << "\n";
   };
   while (next < runs.size() || !running.empty()) {
     while (next < runs.size() && static_cast<int>(running.size()) < std::max(o.jobs, 1)) {

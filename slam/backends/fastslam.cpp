@@ -30,8 +30,8 @@ std::int64_t cell_key(std::int64_t cx, std::int64_t cy) {
 
 // log of the Gaussian density of v with covariance s
 double log_gaussian(const Eigen::Vector2d& v, const Eigen::Matrix2d& s) {
-  return -0.5 * v.dot(s.ldlt().solve(v)) - 0.5 * std::log((2.0 * M_PI) * (2.0 * M_PI) *
-                                                          s.determinant());
+  return -0.5 * v.dot(s.ldlt().solve(v)) -
+         0.5 * std::log((2.0 * M_PI) * (2.0 * M_PI) * s.determinant());
 }
 
 // a standard normal 3-vector
@@ -65,15 +65,18 @@ class ParticleProblem : public AssociationProblem {
   };
 
   ParticleProblem(const core::Pose2& pose, const Eigen::Matrix3d& pose_cov,
-                  const core::ConeObservations& obs, std::vector<Candidate> candidates,
-                  int margin, const std::vector<int>& labels)
-      : pose_cov_(pose_cov), obs_(obs), cand_(std::move(candidates)), margin_(margin),
+                  const core::ConeObservations& obs, std::vector<Candidate> candidates, int margin,
+                  const std::vector<int>& labels)
+      : pose_cov_(pose_cov),
+        obs_(obs),
+        cand_(std::move(candidates)),
+        margin_(margin),
         labels_(labels) {
     for (Candidate& c : cand_) {
       Eigen::Matrix2d hl;
       c.predicted = predict_observation(pose, c.landmark->mean, &c.h_pose, &hl);
-      c.landmark_term = hl * c.landmark->covariance * hl.transpose() +
-                        Eigen::Matrix2d::Identity() * c.drift_m2;
+      c.landmark_term =
+          hl * c.landmark->covariance * hl.transpose() + Eigen::Matrix2d::Identity() * c.drift_m2;
     }
     for (const auto& o : obs.cones) in_map_.push_back(pose.transform(o.position));
   }
@@ -234,8 +237,7 @@ double FastSlam::log_weight_factor(const WeightTerms& t) const {
 
 double FastSlam::fold_observation(core::Pose2& mean, Eigen::Matrix3d& covariance,
                                   const core::Vec2& z, const Eigen::Matrix2d& r,
-                                  const core::Vec2& landmark,
-                                  const Eigen::Matrix2d& landmark_cov) {
+                                  const core::Vec2& landmark, const Eigen::Matrix2d& landmark_cov) {
   // linearised at the proposal's mean: z ~ g(mean) + G_s (s - mean) + G_l (l - mu_l) + noise
   Eigen::Matrix<double, 2, 3> gs;
   Eigen::Matrix2d gl;
@@ -317,9 +319,9 @@ double FastSlam::update_particle(Particle& particle, const SlamInput& input,
   // the best particle after the update (FastSlam::update)
   const bool tracking = config_.association.method == AssociationMethod::kTrackingAided;
   std::vector<int> evidence;
-  std::vector<int> pairing = associate(config_.association, problem,
-                                       tracking ? &track_bindings_ : nullptr,
-                                       tracking ? &evidence : nullptr);
+  std::vector<int> pairing =
+      associate(config_.association, problem, tracking ? &track_bindings_ : nullptr,
+                tracking ? &evidence : nullptr);
   association_us_ +=
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
   for (int i = 0; i < n_obs; ++i)
@@ -366,8 +368,8 @@ double FastSlam::update_particle(Particle& particle, const SlamInput& input,
     const Eigen::Matrix2d s = o.covariance + gl * before.covariance * gl.transpose();
     // (the weight with the drift allowance, the landmark's filter without)
     if (config_.version == 1)
-      terms.matched += log_gaussian(
-          v, s + Eigen::Matrix2d::Identity() * problem.candidate(j).drift_m2);
+      terms.matched +=
+          log_gaussian(v, s + Eigen::Matrix2d::Identity() * problem.candidate(j).drift_m2);
     if (localising) continue;  // the map is fixed
     // the landmark's EKF: K = Sigma G^T S^-1, Joseph form for the covariance
     FastLandmark& lm = *particle.map.find_mut(id);
@@ -432,7 +434,8 @@ double FastSlam::update_particle(Particle& particle, const SlamInput& input,
     if (in_view && !seen) ++terms.unseen;
     if (localising) continue;
     const bool missed_too_often = in_view && !seen && lm.misses + 1 > lm.sightings;
-    const bool stale = !lm.confirmed && travel_m_ - lm.first_travel_m > config_.tentative_max_travel_m;
+    const bool stale =
+        !lm.confirmed && travel_m_ - lm.first_travel_m > config_.tentative_max_travel_m;
     if (missed_too_often || stale) {
       if (lm.loop_state == LoopState::kReturned && lm.confirmed) {
         --particle.returned;
@@ -445,8 +448,8 @@ double FastSlam::update_particle(Particle& particle, const SlamInput& input,
     const double heading_change = core::normalize_angle(pose.yaw - lm.first_heading_rad);
     const LoopState state =
         next_loop_state(lc, lm.loop_state, in_view, seen, since_first_m, heading_change);
-    const bool returned_now = lm.confirmed && state == LoopState::kReturned &&
-                              lm.loop_state != LoopState::kReturned;
+    const bool returned_now =
+        lm.confirmed && state == LoopState::kReturned && lm.loop_state != LoopState::kReturned;
     // the thesis's statistics: of the old landmarks seen or expected, how many returned
     if (lm.confirmed && since_first_m >= lc.returned_min_travel_m && (seen || in_view)) {
       ++stats->old_matched;
@@ -584,8 +587,7 @@ void FastSlam::process(const SlamInput& input) {
 
   // the loop closes on the best particle's statistics once the particles agree on the pose
   const int best = best_particle();
-  if (phase_ == core::SlamPhase::kMapping && closure_due_travel_m_ < 0.0 &&
-      !(loop_closures_ > 0)) {
+  if (phase_ == core::SlamPhase::kMapping && closure_due_travel_m_ < 0.0 && !(loop_closures_ > 0)) {
     double spread_m = 0.0;
     mean_pose(&spread_m);
     if (spread_m <= config_.closure_max_spread_m && loop_closed(config_.loop_closure, stats[best]))
