@@ -148,7 +148,11 @@ core::Estimate DeadReckoning::estimate() const {
 }
 
 std::vector<std::pair<std::string, double>> DeadReckoning::statistics() const {
-  return {{"landmarks", static_cast<double>(landmarks_.size())}};
+  int confirmed = 0;
+  for (const Landmark& lm : landmarks_)
+    confirmed += !lm.forgotten && lm.confirmed(confirm_sightings());
+  return {{"landmarks", static_cast<double>(confirmed)},
+          {"landmarks_made", static_cast<double>(landmarks_.size())}};
 }
 
 }  // namespace conesim::slam

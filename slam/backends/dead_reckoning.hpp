@@ -45,7 +45,8 @@ class DeadReckoning : public Backend {
   int loop_closures() const override { return 0; }
   std::string name() const override { return "odometry"; }
   double last_association_us() const override { return association_us_; }
-  /// `landmarks`: landmarks made so far, tentative and forgotten ones included.
+  /// `landmarks` (in the map: confirmed and not forgotten) and `landmarks_made` (every one
+  /// started, tentative and forgotten ones included).
   std::vector<std::pair<std::string, double>> statistics() const override;
 
  private:
