@@ -177,10 +177,11 @@ std::vector<std::string> lane_order(const json& metrics) {
 // the figures of one lane of one run that the comparison uses
 json lane_figures(const json& lane) {
   json out;
-  for (const char* key : {"role", "association", "ablations", "ideal_association", "map_rmse_m",
-                          "map_matched", "map_spurious", "map_missed", "ate_rmse_m", "da_correct",
-                          "da_wrong", "da_correct_fraction", "loop_closures", "false_loop_closures",
-                          "update_cpu_ms_median", "update_ms_median", "backend_stats"})
+  for (const char* key :
+       {"role", "association", "ablations", "ideal_association", "map_rmse_m", "map_rmse_aligned_m",
+        "map_matched", "map_spurious", "map_missed", "ate_rmse_m", "da_correct", "da_wrong",
+        "da_correct_fraction", "loop_closures", "false_loop_closures", "update_cpu_ms_median",
+        "update_ms_median", "backend_stats"})
     if (lane.contains(key)) out[key] = lane[key];
   out["map_rmse_before_closure_m"] = finite_or_null(rmse_before_closure(lane));
   const json& events = lane.value("loop_closure_events", json::array());
@@ -330,6 +331,20 @@ void add_fst_tables(const json& c, json& tables) {
            std::to_string(o.value("holds", 0)) + " of " + std::to_string(o.value("runs", 0))});
     }
     tables.push_back(t);
+    json al =
+        table("fst", "The same after the best rigid alignment of each map on the true cones [m]",
+              "map_rmse_aligned_m: what is left once an offset of the whole map against "
+              "the start pose (the gauge, fixed by the first observations) is taken out.",
+              {"track", "FastSLAM 1.0", "FastSLAM 2.0", "GraphSLAM", "EKF SLAM", "dead reckoning"});
+    for (const json& p : c["per_track"]) {
+      if (p["study"] != "fst" || p["condition"] != name) continue;
+      auto cell = [&](const char* lane) {
+        return spread(p["lanes_aligned"].value(lane, json()), 3);
+      };
+      al["rows"].push_back({p["track"], cell("fastslam1"), cell("fastslam2"), cell("graph"),
+                            cell("ekf"), cell("odometry")});
+    }
+    tables.push_back(al);
 
     // associations (Table 4.3)
     json a = table("fst", "Correct and missed associations (FST Table 4.3), summed over runs",
@@ -635,7 +650,8 @@ json compare_json(const StudyPlan& plan, const std::vector<StudyResult>& results
   for (const StudyCondition& cond : plan.conditions) {
     std::vector<std::string> lane_order;
     std::map<std::string, std::vector<const json*>> by_lane;
-    std::map<std::string, std::map<std::string, std::vector<double>>> rmse_by_track;
+    std::map<std::string, std::map<std::string, std::vector<double>>> rmse_by_track,
+        aligned_by_track;
     std::vector<std::string> track_order;
     std::map<std::string, std::pair<int, int>> ordering;  // track: holds, runs
     for (const json& run : runs) {
@@ -648,6 +664,7 @@ json compare_json(const StudyPlan& plan, const std::vector<StudyResult>& results
         if (!by_lane.count(lane)) lane_order.push_back(lane);
         by_lane[lane].push_back(&f);
         rmse_by_track[track][lane].push_back(number_or_nan(f, "map_rmse_m"));
+        aligned_by_track[track][lane].push_back(number_or_nan(f, "map_rmse_aligned_m"));
       }
       const json& l = run["lanes"];
       if (l.contains("fastslam1") && l.contains("fastslam2") && l.contains("graph")) {
@@ -694,6 +711,7 @@ json compare_json(const StudyPlan& plan, const std::vector<StudyResult>& results
            {"runs", fs_.size()},
            {"runs_closed", closed},
            {"map_rmse_m", statistic(collect("map_rmse_m"))},
+           {"map_rmse_aligned_m", statistic(collect("map_rmse_aligned_m"))},
            {"ate_rmse_m", statistic(collect("ate_rmse_m"))},
            {"map_matched", finite_or_null(median(collect("map_matched")))},
            {"map_spurious", finite_or_null(median(collect("map_spurious")))},
@@ -710,10 +728,11 @@ json compare_json(const StudyPlan& plan, const std::vector<StudyResult>& results
            {"thesis", thesis_for(cond.study, lane)}});
     }
     for (const std::string& track : track_order) {
-      json lanes = json::object();
+      json lanes = json::object(), aligned = json::object();
       int seeds = 0;
       for (const auto& [lane, values] : rmse_by_track[track]) {
         lanes[lane] = statistic(values);
+        aligned[lane] = statistic(aligned_by_track[track][lane]);
         seeds = std::max(seeds, static_cast<int>(values.size()));
       }
       per_track.push_back(
@@ -722,6 +741,7 @@ json compare_json(const StudyPlan& plan, const std::vector<StudyResult>& results
            {"track", track},
            {"seeds", seeds},
            {"lanes", lanes},
+           {"lanes_aligned", aligned},
            {"ordering", {{"holds", ordering[track].first}, {"runs", ordering[track].second}}}});
     }
   }
