@@ -783,6 +783,21 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                          ss.cone_sensor_track = read_bool(x, c, "track");
                        }}});
                }},
+              {"imu",
+               [&](const YAML::Node& v) {
+                 const Where c{&context, "sensors.imu"};
+                 auto& imu = ss.imu;
+                 read_section(
+                     v, c,
+                     {number("gyro_noise_density_rps_rthz", imu.gyro_noise_density_rps_rthz, c),
+                      number("gyro_bias_walk_rps_rts", imu.gyro_bias_walk_rps_rts, c),
+                      number("gyro_initial_bias_rps", imu.gyro_initial_bias_rps, c)});
+               }},
+              {"wheel_encoders",
+               [&](const YAML::Node& v) {
+                 const Where c{&context, "sensors.wheel_encoders"};
+                 read_section(v, c, {number("noise_rps", ss.wheel_encoders.noise_rps, c)});
+               }},
               {"lidar",
                [&](const YAML::Node& v) {
                  const Where c{&context, "sensors.lidar"};
@@ -874,6 +889,9 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   if (!(s.sensors.cone_fov_deg > 0.0 && s.sensors.cone_fov_deg <= 360.0))
     context.fail("sensors.cone_fov_deg", "expected a field of view in (0, 360] degrees");
   if (const std::string e = s.sensors.cone_sensor.validate(); !e.empty())
+    context.fail_check("sensors", e);
+  if (const std::string e = s.sensors.imu.validate(); !e.empty()) context.fail_check("sensors", e);
+  if (const std::string e = s.sensors.wheel_encoders.validate(); !e.empty())
     context.fail_check("sensors", e);
   if (const std::string e = s.sensors.camera.validate(); !e.empty())
     context.fail_check("sensors.camera", e);

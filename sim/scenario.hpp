@@ -13,6 +13,7 @@
 #include "core/event.hpp"
 #include "sensors/cone_sensor.hpp"
 #include "sensors/stereo_camera.hpp"
+#include "sensors/vehicle_sensors.hpp"
 #include "sim/referee.hpp"
 #include "slam/factory.hpp"
 #include "tracks/generator.hpp"
@@ -58,6 +59,10 @@ struct SensorSettings {
   /// Time from an exposure until its cones reach SLAM (`perception: stereo`), seconds.
   double camera_latency_s = 0.05;
   sensors::StereoCameraConfig camera;
+  /// The IMU and wheel encoders that feed SLAM's odometry (`sensors.imu`,
+  /// `sensors.wheel_encoders`: their noise).
+  sensors::ImuConfig imu;
+  sensors::WheelEncoderConfig wheel_encoders;
 };
 
 /// What a run must achieve to pass.

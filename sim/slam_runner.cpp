@@ -92,6 +92,10 @@ slam::OdometryConfig odometry_config(const Scenario& s) {
   // the gyro's yaw rate: on the MuJoCo car the anti-Ackermann front tyres fight, and the
   // bicycle model overstates the yaw rate by up to 18 % at large angles (docs/vehicle.md)
   c.model = slam::MotionModel::kUnicycle;
+  // the heading random walk it allows: four times the gyro's white noise (the default's margin
+  // over the MEMS IMU), at least the default
+  c.gyro_sigma_rad_per_sqrt_s =
+      std::max(c.gyro_sigma_rad_per_sqrt_s, 4.0 * s.sensors.imu.gyro_noise_density_rps_rthz);
   return c;
 }
 
@@ -163,7 +167,9 @@ struct SlamRunner::Lane {
 };
 
 SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const VehicleSim& car)
-    : track_(track), feed_(s.seed), odometry_(odometry_config(s)) {
+    : track_(track),
+      feed_(s.seed, s.sensors.imu, s.sensors.wheel_encoders),
+      odometry_(odometry_config(s)) {
   if (s.slam == "none") throw std::invalid_argument("slam: no driving back-end");
   start_pose_ = car.truth().pose;
   latency_us_ = core::from_seconds(s.slam_latency_s);

@@ -18,7 +18,7 @@ check bad_set 2 "$bin" compare fst --set 'slam.shadow=[graph+no_gps]' --out "$wo
 expect_text bad_set "$work/err" "unknown ablation 'no_gps'"
 [ -e "$work/bad" ] && { echo "FAIL bad input made a folder"; failures=$((failures + 1)); }
 
-# a tiny FST study: one lap of FSG, one seed
+# a tiny FST study: one lap of FSG, one seed, its two conditions
 check tiny 0 "$bin" compare fst --track "$data/fssim/FSG.yaml" --seeds 1 \
   --set driver.trackdrive_laps=1 --jobs 2 --out "$work/tiny"
 for f in compare.json compare.md compare.html; do
@@ -32,7 +32,7 @@ import json, sys
 c = json.load(open(sys.argv[1]))
 assert c["schema"] == "conesim-compare/1"
 assert c["studies"] == ["fst"] and c["failed_runs"] == []
-assert len(c["runs"]) == 1 and c["runs"][0]["usable"]
+assert len(c["runs"]) == 2 and all(r["usable"] for r in c["runs"])
 lanes = {s["lane"]: s for s in c["summary"]}
 for lane in ["graph", "fastslam1", "fastslam2", "ekf", "odometry", "graph-ml", "graph-jcbb"]:
     s = lanes[lane]

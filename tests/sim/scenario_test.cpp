@@ -97,6 +97,21 @@ TEST_F(ScenarioFile, AblationsAreShadowLanesAndKeys) {
   EXPECT_EQ(load_scenario(write(head + "slam: odometry\n")).slam, "odometry");
 }
 
+TEST_F(ScenarioFile, OdometrySensorNoiseIsAScenarioKey) {
+  const std::string head = "event: trackdrive\nperception: cone_sensor\nslam: graph\n";
+  const Scenario s =
+      load_scenario(write(head + "sensors: {imu: {gyro_noise_density_rps_rthz: 1.2e-3},\n"
+                                 "  wheel_encoders: {noise_rps: 0.2}}\n"));
+  EXPECT_DOUBLE_EQ(s.sensors.imu.gyro_noise_density_rps_rthz, 1.2e-3);
+  EXPECT_DOUBLE_EQ(s.sensors.wheel_encoders.noise_rps, 0.2);
+  EXPECT_NE(error_of(head + "sensors: {imu: {gyro_noise_density_rps_rthz: -1}}\n")
+                .find("sensors.imu.gyro_noise_density_rps_rthz"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "sensors: {wheel_encoders: {teeth: 3}}\n")
+                .find("sensors.wheel_encoders.teeth: unknown key"),
+            std::string::npos);
+}
+
 TEST_F(ScenarioFile, BadAblationsNameTheKeyAndWhatWasExpected) {
   const std::string head = "event: trackdrive\nperception: cone_sensor\n";
   EXPECT_NE(error_of(head + "slam: {drive: graph, shadow: [graph+no_gps]}\n")
