@@ -324,12 +324,14 @@ void add_fst_tables(const json& c, json& tables) {
   for (const json& cond : c["conditions"]) {
     if (cond["study"] != "fst") continue;
     const std::string name = cond["name"];
+    const std::string where = "condition '" + name + "'";
     // map RMSE per track with the thesis's figure beside each method
-    json t = table("fst", "Map RMSE per method and track [m], median (min-max) over seeds",
-                   "FST Table 4.2 (simulation, 2018 FSG track) in the 'thesis' columns. The "
-                   "ordering column counts the runs in which FastSLAM 1.0 > 2.0 > GraphSLAM.",
-                   {"track", "seeds", "FastSLAM 1.0", "thesis", "FastSLAM 2.0", "thesis",
-                    "GraphSLAM", "thesis", "EKF SLAM", "dead reckoning", "FS1 > FS2 > Graph"});
+    json t =
+        table("fst", "Map RMSE per method and track [m], median (min-max) over seeds, " + where,
+              "FST Table 4.2 (simulation, 2018 FSG track) in the 'thesis' columns. The "
+              "ordering column counts the runs in which FastSLAM 1.0 > 2.0 > GraphSLAM.",
+              {"track", "seeds", "FastSLAM 1.0", "thesis", "FastSLAM 2.0", "thesis", "GraphSLAM",
+               "thesis", "EKF SLAM", "dead reckoning", "FS1 > FS2 > Graph"});
     for (const json& p : c["per_track"]) {
       if (p["study"] != "fst" || p["condition"] != name) continue;
       auto cell = [&](const char* lane) { return spread(p["lanes"].value(lane, json()), 3); };
@@ -341,7 +343,8 @@ void add_fst_tables(const json& c, json& tables) {
     }
     tables.push_back(t);
     json al =
-        table("fst", "The same after the best rigid alignment of each map on the true cones [m]",
+        table("fst",
+              "The same after the best rigid alignment of each map on the true cones [m], " + where,
               "map_rmse_aligned_m: what is left once an offset of the whole map against "
               "the start pose (the gauge, fixed by the first observations) is taken out.",
               {"track", "FastSLAM 1.0", "FastSLAM 2.0", "GraphSLAM", "EKF SLAM", "dead reckoning"});
@@ -356,11 +359,12 @@ void add_fst_tables(const json& c, json& tables) {
     tables.push_back(al);
 
     // associations (Table 4.3)
-    json a = table("fst", "Correct and missed associations (FST Table 4.3), summed over runs",
-                   "Judged against the labels (docs/metrics.md, da_correct / da_wrong). The "
-                   "thesis counted one run of the real car; its accuracy is what compares.",
-                   {"method", "correct", "wrong", "accuracy", "thesis correct", "thesis wrong",
-                    "thesis accuracy"});
+    json a =
+        table("fst", "Correct and missed associations (FST Table 4.3), summed over runs, " + where,
+              "Judged against the labels (docs/metrics.md, da_correct / da_wrong). The "
+              "thesis counted one run of the real car; its accuracy is what compares.",
+              {"method", "correct", "wrong", "accuracy", "thesis correct", "thesis wrong",
+               "thesis accuracy"});
     for (const std::string& lane : lanes_of(summary, "fst", name)) {
       const json& s = *summary_of(summary, "fst", name, lane);
       const json th = thesis_for("fst", lane);
@@ -374,10 +378,11 @@ void add_fst_tables(const json& c, json& tables) {
     tables.push_back(a);
 
     // time per update
-    json u = table("fst", "Time per update (CPU), median over runs of each run's median [ms]",
-                   "The ratio is to GraphSLAM's. The thesis: GraphSLAM 0.00115 ms, FastSLAM 1.0 "
-                   "0.0153 ms, FastSLAM 2.0 0.027 ms per iteration (1 : 13 : 23).",
-                   {"method", "update [ms]", "ratio to GraphSLAM", "thesis [ms]", "thesis ratio"});
+    json u =
+        table("fst", "Time per update (CPU), median over runs of each run's median [ms], " + where,
+              "The ratio is to GraphSLAM's. The thesis: GraphSLAM 0.00115 ms, FastSLAM 1.0 "
+              "0.0153 ms, FastSLAM 2.0 0.027 ms per iteration (1 : 13 : 23).",
+              {"method", "update [ms]", "ratio to GraphSLAM", "thesis [ms]", "thesis ratio"});
     const json* graph = summary_of(summary, "fst", name, "graph");
     const double graph_ms = graph ? number_or_nan(*graph, "update_cpu_ms_median") : NAN;
     for (const std::string& lane : lanes_of(summary, "fst", name)) {
@@ -391,10 +396,11 @@ void add_fst_tables(const json& c, json& tables) {
     tables.push_back(u);
 
     // before and after the loop closure (Fig. 4.8)
-    json l = table("fst", "Map RMSE before and after the loop closure [m], median over runs",
-                   "Before: the last 10 m snapshot before the first closure; after: the final "
-                   "map. FST Fig. 4.8 (GraphSLAM on the real car, track 1): 1.23 -> 0.35 m.",
-                   {"method", "runs closed", "before", "after", "thesis before", "thesis after"});
+    json l =
+        table("fst", "Map RMSE before and after the loop closure [m], median over runs, " + where,
+              "Before: the last 10 m snapshot before the first closure; after: the final "
+              "map. FST Fig. 4.8 (GraphSLAM on the real car, track 1): 1.23 -> 0.35 m.",
+              {"method", "runs closed", "before", "after", "thesis before", "thesis after"});
     for (const std::string& lane : lanes_of(summary, "fst", name)) {
       const json& s = *summary_of(summary, "fst", name, lane);
       const json th = thesis_for("fst", lane);
@@ -774,7 +780,11 @@ std::string compare_markdown(const json& c) {
   md << "`" << c.value("command", "") << "`: " << c["runs"].size() << " runs of `"
      << c.value("scenario", "") << "` (GraphSLAM drives, the methods run in shadow on the same "
      << "observations), " << c.value("jobs", 0) << " at once, " << fixed(c["wall_time_s"], 0)
-     << " s. Figures from each run's metrics.json (docs/metrics.md).\n\n";
+     << " s";
+  if (c.value("reused_runs", 0) > 0)
+    md << " (" << c.value("reused_runs", 0) << " runs reused from an earlier call: the time is "
+       << "not theirs)";
+  md << ". Figures from each run's metrics.json (docs/metrics.md).\n\n";
   if (!c["failed_runs"].empty()) {
     md << "**" << c["failed_runs"].size() << " runs gave no figures:**\n\n";
     for (const json& f : c["failed_runs"])
@@ -876,33 +886,54 @@ int run_compare(const fs::path& self, const CompareOptions& o, std::ostream& out
            << "\n";
 
   // every run a `conesim run` process with its condition's values
+  std::vector<StudyResult> results(plan.runs.size());
+  auto read_metrics = [&](size_t i) {
+    StudyResult& r = results[i];
+    const fs::path dir = o.out_dir / plan.runs[i].dir;
+    if (std::ifstream in(dir / "metrics.json"); in) {
+      try {
+        in >> r.metrics;
+      } catch (const std::exception&) {
+        r.metrics = json();
+      }
+    }
+  };
+  // with --reuse, a run that finished before is read, not run (its exit status from its verdict)
   std::vector<ProcessJob> jobs;
-  for (const StudyRun& r : plan.runs) {
+  std::vector<size_t> job_run;
+  size_t reused = 0;
+  for (size_t i = 0; i < plan.runs.size(); ++i) {
+    const StudyRun& r = plan.runs[i];
     const fs::path dir = o.out_dir / r.dir;
+    if (o.reuse && fs::is_regular_file(dir / "metrics.json")) {
+      read_metrics(i);
+      if (results[i].metrics.is_object()) {
+        results[i].exit_code = results[i].metrics.value("passed", false) ? 0 : 1;
+        ++reused;
+        continue;
+      }
+    }
     std::vector<std::string> argv = {
         self.string(),          "run",   kScenario,    "--track",  r.track_file.string(), "--seed",
         std::to_string(r.seed), "--out", dir.string(), "--no-plot"};
-    for (const std::string& s : r.sets) argv.insert(argv.end(), {"--set", s});
+    for (const std::string& set : r.sets) argv.insert(argv.end(), {"--set", set});
     jobs.push_back({argv, dir / "log.txt"});
+    job_run.push_back(i);
   }
-  std::vector<StudyResult> results(plan.runs.size());
+  if (reused > 0) progress << reused << " runs reused from " << o.out_dir.string() << "\n";
   size_t done = 0;
   run_processes(
-      jobs, o.jobs, [&](size_t i) { fs::create_directories(o.out_dir / plan.runs[i].dir); },
-      [&](size_t i, int exit_code) {
+      jobs, o.jobs,
+      [&](size_t j) { fs::create_directories(o.out_dir / plan.runs[job_run[j]].dir); },
+      [&](size_t j, int exit_code) {
+        const size_t i = job_run[j];
         StudyResult& r = results[i];
         r.exit_code = exit_code;
-        const fs::path dir = o.out_dir / plan.runs[i].dir;
-        if (std::ifstream in(dir / "metrics.json"); in) {
-          try {
-            in >> r.metrics;
-          } catch (const std::exception&) {
-            r.metrics = json();
-          }
-        }
-        if (!r.metrics.is_object()) r.log_tail = last_log_line(dir / "log.txt");
+        read_metrics(i);
+        if (!r.metrics.is_object())
+          r.log_tail = last_log_line(o.out_dir / plan.runs[i].dir / "log.txt");
         ++done;
-        progress << "[" << done << "/" << plan.runs.size() << "] " << plan.runs[i].id() << ": "
+        progress << "[" << done << "/" << jobs.size() << "] " << plan.runs[i].id() << ": "
                  << (run_usable(r) ? "done" : "FAILED (exit " + std::to_string(exit_code) + ")")
                  << "\n";
       });
@@ -910,6 +941,7 @@ int run_compare(const fs::path& self, const CompareOptions& o, std::ostream& out
 
   // the outputs: the figures, then compare.json, compare.md and compare.html
   json c = compare_json(plan, results, o, wall_s);
+  c["reused_runs"] = reused;
   if (o.plot) draw_figures(plan, results, o.out_dir, c["figures"], progress);
   std::ofstream(o.out_dir / "compare.json") << c.dump(2) << "\n";
   std::ofstream(o.out_dir / "compare.md") << compare_markdown(c);

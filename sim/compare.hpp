@@ -28,6 +28,9 @@ struct CompareOptions {
   std::vector<std::string> sets;
   /// Whether the comparison's figures are drawn (gnuplot).
   bool plot = true;
+  /// Runs whose folder already holds a metrics.json are not run again (their exit status is
+  /// read from it: 0 when it passed, else 1): the outputs are written again from them.
+  bool reuse = false;
   /// The command line, for compare.json.
   std::string command_line;
 };

@@ -428,6 +428,9 @@ void add_compare_command(CLI::App& app, int& status, int argc, char** argv) {
   cmd->add_option("--set", o->sets,
                   "Override a scenario value in every run, after the study's own: key.path=value");
   cmd->add_flag("--no-plot", *no_plot, "Draw no figures");
+  cmd->add_flag("--reuse", o->reuse,
+                "With --out of an earlier call: runs that wrote their metrics.json are read, not "
+                "run again (the outputs are written anew)");
   cmd->add_flag("--list", *list, "Print the runs (id and folder) and stop: nothing runs");
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;

@@ -50,6 +50,20 @@ PY
   passed=$((passed + 1))
 fi
 
+# --reuse writes the outputs again from the runs already there, running nothing
+cp "$work/tiny/compare.json" "$work/first.json"
+check reuse 0 "$bin" compare fst --track "$data/fssim/FSG.yaml" --seeds 1 \
+  --set driver.trackdrive_laps=1 --no-plot --reuse --out "$work/tiny"
+expect_text reuse "$work/err" '^2 runs reused from'
+if command -v python3 >/dev/null; then
+  python3 - "$work/first.json" "$work/tiny/compare.json" <<'PY' || { echo "FAIL reuse_same"; failures=$((failures + 1)); }
+import json, sys
+a, b = (json.load(open(f)) for f in sys.argv[1:3])
+assert a["summary"] == b["summary"] and b["reused_runs"] == 2
+PY
+  passed=$((passed + 1))
+fi
+
 # a run that gives no figures: the layout with a cone under the car is refused (exit 2); the
 # comparison goes on with the others, names it and exits 1
 check failing_run 1 "$bin" compare monash --track "$data/eufs/SmallCircle.csv" \
