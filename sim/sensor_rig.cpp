@@ -181,7 +181,7 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
     with_depth_ = s.sensors.camera_depth;
     camera_latency_us_ = core::from_seconds(s.sensors.camera_latency_s);
   }
-  if (raw_lidar || raw_camera)
+  if (raw_lidar || raw_camera || s.perception_plugin)
     perception_ = std::make_unique<PerceptionRunner>(
         s, track, lidar_ ? lidar_->config().mount : core::Pose3{});
 
@@ -279,19 +279,33 @@ void SensorRig::end_sweep() {
   // estimates now
   const slam::frontend::LidarConeDetector* detector =
       perception_ ? perception_->lidar_detector() : nullptr;
+  // or a perception plug-in in its place
+  const PerceptionRunner* plugin =
+      perception_ && perception_->is_plugin() && perception_->uses_lidar() ? perception_.get()
+                                                                           : nullptr;
   const slam::frontend::SweepMotion motion =
       perception_ ? perception_->motion() : slam::frontend::SweepMotion{};
-  pending_scan_ = worker_->post([this, sweep = casting_, start, begin, columns, detector, motion,
-                                 window = pose_window(lidar_->column_time(start, begin), end)] {
-    sweep->cast(*lidar_, lidar_rng_, start, begin, columns, window);
-    SweepResult r{std::move(sweep->scan), std::nullopt, sweep->cast_ms, 0.0};
-    if (detector) {
-      const auto t0 = clock::now();
-      r.detections = detector->detect(r.scan.cloud, motion);
-      r.detect_ms = ms_between(t0, clock::now());
-    }
-    return r;
-  });
+  pending_scan_ =
+      worker_->post([this, sweep = casting_, start, begin, columns, detector, plugin, motion, end,
+                     window = pose_window(lidar_->column_time(start, begin), end)] {
+        sweep->cast(*lidar_, lidar_rng_, start, begin, columns, window);
+        SweepResult r{std::move(sweep->scan), std::nullopt, sweep->cast_ms, 0.0, std::nullopt, {}};
+        if (detector) {
+          const auto t0 = clock::now();
+          r.detections = detector->detect(r.scan.cloud, motion);
+          r.detect_ms = ms_between(t0, clock::now());
+        }
+        if (plugin) {
+          const auto t0 = clock::now();
+          try {
+            r.plugin_frame = plugin->plugin_lidar(r.scan.cloud, end, motion);
+          } catch (const PluginFailure& e) {
+            r.plugin_failure = e.what();
+          }
+          r.detect_ms = ms_between(t0, clock::now());
+        }
+        return r;
+      });
 
   // the next sweep
   sweep_start_ += lidar_->config().sweep_period_us();
@@ -317,6 +331,18 @@ void SensorRig::collect_sweep() {
   const int index = stats_.lidar_scans++;
   stats_.lidar_points += static_cast<int64_t>(scan.cloud.points.size());
 
+  // a plug-in's cones likewise, scored on what it delivers; its failure ends the run
+  if (!result.plugin_failure.empty() && failure_.empty()) failure_ = result.plugin_failure;
+  if (result.plugin_frame && referee_) {
+    stats_.lidar_detect_ms_total += result.detect_ms;
+    const Referee& referee = *referee_;
+    auto d = perception_->on_plugin_frame(
+        *result.plugin_frame,
+        poses_.at(result.plugin_frame->stamp >= 0 ? result.plugin_frame->stamp : poses_.newest())
+            .planar(),
+        [&referee](int id) { return referee.is_knocked(id); });
+    if (d) cone_queue_.push_back({pending_delivery_us_, std::move(*d)});
+  }
   // the sweep's cones go to SLAM once the perception latency has passed
   if (result.detections && referee_) {
     stats_.lidar_detect_ms_total += result.detect_ms;
@@ -403,7 +429,24 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
 
   // the stereo cone detector on the pair; its cones reach SLAM after the latency
   std::optional<slam::frontend::StereoDetections> detections;
-  if (perception_ && perception_->uses_camera()) {
+  if (perception_ && perception_->is_plugin() && perception_->uses_camera()) {
+    // a perception plug-in: its cones of the pair reach SLAM after the camera latency, unless
+    // it also takes the LiDAR (then its sweeps deliver, and it fuses the pairs itself)
+    const auto t0 = clock::now();
+    try {
+      core::ConeObservations cones = perception_->plugin_stereo(frame_);
+      stats_.stereo_detect_ms_total +=
+          std::chrono::duration<double, std::milli>(clock::now() - t0).count();
+      if (!perception_->uses_lidar()) {
+        auto d =
+            perception_->on_plugin_frame(std::move(cones), car.truth().pose,
+                                         [&referee](int id) { return referee.is_knocked(id); });
+        if (d) cone_queue_.push_back({t + camera_latency_us_, std::move(*d)});
+      }
+    } catch (const PluginFailure& e) {
+      if (failure_.empty()) failure_ = e.what();
+    }
+  } else if (perception_ && perception_->uses_camera()) {
     const auto t0 = clock::now();
     detections = perception_->stereo_detector()->detect(frame_);
     stats_.stereo_detect_ms_total +=
