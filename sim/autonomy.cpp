@@ -3,7 +3,9 @@
 #include <dlfcn.h>
 
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
+#include <mutex>
 
 #include "core/error.hpp"
 #include "sim/scenario.hpp"
@@ -197,15 +199,102 @@ void PluginGuard::check_finite(const char* what, double value) const {
                         " as " + what);
 }
 
-void PluginGuard::threw(const char* what, const std::string& message) const {
-  throw PluginFailure(label_ + " threw in " + what + ": " + message);
+struct PluginCallThread::State {
+  std::mutex mutex;
+  std::condition_variable wake;
+  std::function<void()> job;
+  bool has_job = false;
+  bool done = false;
+  bool stopping = false;
+  bool abandoned = false;
+
+  void loop() {
+    std::unique_lock<std::mutex> lock(mutex);
+    for (;;) {
+      wake.wait(lock, [this] { return has_job || stopping; });
+      if (!has_job) return;
+      std::function<void()> next = std::move(job);
+      has_job = false;
+      lock.unlock();
+      next();
+      lock.lock();
+      done = true;
+      wake.notify_all();
+    }
+  }
+};
+
+PluginCallThread::PluginCallThread() : state_(std::make_shared<State>()) {
+  thread_ = std::thread([state = state_] { state->loop(); });
 }
 
-void PluginGuard::overran(const char* what, double ms) const {
-  char buf[160];
-  std::snprintf(buf, sizeof(buf), " took %.0f ms in %s, over its time budget of %.0f ms", ms, what,
-                budget_ms_);
-  throw PluginFailure(label_ + buf);
+PluginCallThread::~PluginCallThread() {
+  {
+    std::lock_guard<std::mutex> lock(state_->mutex);
+    state_->stopping = true;
+  }
+  state_->wake.notify_all();
+  // a thread still in a call that never returned is left to the end of the process
+  if (abandoned())
+    thread_.detach();
+  else
+    thread_.join();
+}
+
+bool PluginCallThread::run(std::function<void()> job, double timeout_ms) {
+  std::unique_lock<std::mutex> lock(state_->mutex);
+  if (state_->abandoned) return false;
+  state_->job = std::move(job);
+  state_->has_job = true;
+  state_->done = false;
+  state_->wake.notify_all();
+  const bool done = state_->wake.wait_for(
+      lock, std::chrono::duration<double, std::milli>(timeout_ms), [this] { return state_->done; });
+  if (!done) state_->abandoned = true;
+  return done;
+}
+
+bool PluginCallThread::abandoned() const {
+  std::lock_guard<std::mutex> lock(state_->mutex);
+  return state_->abandoned;
+}
+
+PluginGuard::PluginGuard(const PluginSpec& spec)
+    : label_(spec.label()),
+      budget_ms_(spec.time_budget_ms),
+      thread_(std::make_unique<PluginCallThread>()) {}
+
+void PluginGuard::run(const char* what, std::function<void()> job) const {
+  if (thread_->abandoned())
+    throw PluginFailure(label_ + " is not answering: an earlier call never returned");
+  // what the call threw comes back beside it
+  auto error = std::make_shared<std::exception_ptr>();
+  const bool returned = thread_->run(
+      [job = std::move(job), error] {
+        try {
+          job();
+        } catch (...) {
+          *error = std::current_exception();
+        }
+      },
+      budget_ms_);
+  if (!returned) {
+    char buf[160];
+    std::snprintf(buf, sizeof(buf), " did not return from %s within its time budget of %.0f ms",
+                  what, budget_ms_);
+    throw PluginFailure(label_ + buf);
+  }
+  if (!*error) return;
+  try {
+    std::rethrow_exception(*error);
+  } catch (const PluginFailure&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw PluginFailure(label_ + " threw in " + what + ": " + e.what());
+  } catch (...) {
+    throw PluginFailure(label_ + " threw in " + what +
+                        ": an exception that is not a std::exception");
+  }
 }
 
 sdk::Command GuardedDriver::update(const sdk::DriverInput& input) {

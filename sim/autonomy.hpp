@@ -6,9 +6,12 @@
 
 #include <chrono>
 #include <filesystem>
+#include <functional>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -129,49 +132,69 @@ PluginInstance<sdk::Perception> make_plugin_perception(const PluginSpec& spec,
 /// configuration stops the run before anything is written. Throws core::InputError.
 void check_plugins(const Scenario& s, const sdk::RunInfo& run);
 
-/// Times a plug-in's calls against its budget and turns what it throws into PluginFailure.
+/// A thread of its own for a plug-in's calls: the caller waits for each call up to the time
+/// budget, and a call that does not return by then is left behind, still running (a plug-in's
+/// code cannot be stopped from outside), with the thread.
+class PluginCallThread {
+ public:
+  PluginCallThread();
+  /// Stops the thread; one left behind is detached instead.
+  ~PluginCallThread();
+  PluginCallThread(const PluginCallThread&) = delete;
+  PluginCallThread& operator=(const PluginCallThread&) = delete;
+
+  /// Runs the job on the thread and waits for it at most timeout_ms; false when it did not
+  /// return by then (the thread is then left behind, and every later run() is refused).
+  bool run(std::function<void()> job, double timeout_ms);
+  /// True once a call did not return within its time.
+  bool abandoned() const;
+
+ private:
+  struct State;
+  std::shared_ptr<State> state_;
+  std::thread thread_;
+};
+
+/// Runs a plug-in's calls within its time budget and turns what it throws into PluginFailure.
 class PluginGuard {
  public:
-  explicit PluginGuard(const PluginSpec& spec)
-      : label_(spec.label()), budget_ms_(spec.time_budget_ms) {}
-  /// Runs f(); rethrows anything as PluginFailure naming the plug-in and `what` ("update"),
-  /// and raises one when the call took longer than the budget.
+  explicit PluginGuard(const PluginSpec& spec);
+  /// Runs f() on the plug-in's call thread; raises PluginFailure naming the plug-in and `what`
+  /// ("update") when it throws or does not return within the budget.
   template <typename F>
   auto call(const char* what, F&& f) const {
-    const auto start = std::chrono::steady_clock::now();
-    auto check_time = [&] {
-      const double ms =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-              .count();
-      if (ms > budget_ms_) overran(what, ms);
-    };
-    try {
-      if constexpr (std::is_void_v<decltype(f())>) {
-        f();
-        check_time();
-      } else {
-        auto r = f();
-        check_time();
-        return r;
-      }
-    } catch (const PluginFailure&) {
-      throw;
-    } catch (const std::exception& e) {
-      threw(what, e.what());
-    } catch (...) {
-      threw(what, "an exception that is not a std::exception");
+    using Result = decltype(f());
+    // the result lives beside the call, not in this frame: a call left behind that returns
+    // later writes it there
+    if constexpr (std::is_void_v<Result>) {
+      run(what, [fn = &f] { (*fn)(); });
+    } else {
+      auto result = std::make_shared<std::optional<Result>>();
+      run(what, [fn = &f, result] { *result = (*fn)(); });
+      return std::move(**result);
     }
   }
   /// Raises PluginFailure for a number that is not finite in the output `what`.
   void check_finite(const char* what, double value) const;
   const std::string& label() const { return label_; }
+  /// True once a call did not return within the budget: the plug-in's object and library
+  /// must then never be destroyed (its code may still be running).
+  bool abandoned() const { return thread_->abandoned(); }
 
  private:
-  [[noreturn]] void threw(const char* what, const std::string& message) const;
-  [[noreturn]] void overran(const char* what, double ms) const;
+  void run(const char* what, std::function<void()> job) const;
   std::string label_;
   double budget_ms_;
+  std::unique_ptr<PluginCallThread> thread_;
 };
+
+/// Keeps a plug-in's object and library for good when a call of it was left running.
+template <typename T>
+void keep_if_abandoned(const PluginGuard& guard, PluginInstance<T>& instance) {
+  if (!guard.abandoned()) return;
+  (void)instance.object.release();
+  (void)new std::shared_ptr<const PluginLibrary>(instance.library);
+}
 
 /// A driver plug-in under its guard: exceptions, NaN commands and overruns become
 /// PluginFailure.
@@ -179,6 +202,7 @@ class GuardedDriver final : public sdk::Driver {
  public:
   GuardedDriver(const PluginSpec& spec, PluginInstance<sdk::Driver> driver)
       : guard_(spec), driver_(std::move(driver)) {}
+  ~GuardedDriver() override { keep_if_abandoned(guard_, driver_); }
   sdk::Command update(const sdk::DriverInput& input) override;
   sdk::DriverStatus status() const override;
 
@@ -192,6 +216,7 @@ class GuardedDriver final : public sdk::Driver {
 class PluginBackend final : public slam::Backend {
  public:
   PluginBackend(const PluginSpec& spec, PluginInstance<sdk::Slam> slam);
+  ~PluginBackend() override { keep_if_abandoned(guard_, slam_); }
   void reset(const core::Pose2& initial_pose, core::TimeUs stamp) override;
   void set_prior_map(const std::vector<core::MapCone>& map) override;
   void process(const slam::SlamInput& input) override;

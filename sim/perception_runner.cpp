@@ -131,6 +131,11 @@ PerceptionRunner::PerceptionRunner(const Scenario& s, const tracks::Track& track
   if (lidar) delivered_score_ = std::make_unique<PerceptionScorer>(lidar_xy_, kScoreBandM, kScoreRangeM);
 }
 
+PerceptionRunner::~PerceptionRunner() {
+  // a plug-in whose call was left running is kept for good
+  if (plugin_guard_) keep_if_abandoned(*plugin_guard_, plugin_);
+}
+
 std::vector<TrueConeInView> PerceptionRunner::truth_in_view(
     const core::Pose2& true_pose, const core::Vec2& sensor, double half_fov_rad,
     const std::function<bool(int)>& is_knocked) const {

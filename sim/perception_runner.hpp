@@ -106,6 +106,8 @@ class PerceptionRunner {
   /// figures under `lidar` and `stereo` when both run.
   nlohmann::json metrics() const;
 
+  ~PerceptionRunner();
+
   /// The range-band figure (recall, precision, colour, RMSE per 5 m band) as a PNG.
   void write_plot(const std::filesystem::path& png) const;
 

@@ -116,8 +116,15 @@ dnf driver_throws "^driver plug-in 'faulty' \(.*\) threw in update: injected fau
   acceleration --set "autonomy.driver={plugin: $faulty, config: {fault: throw}}"
 dnf driver_nan "^driver plug-in 'faulty' \(.*\) returned NaN as steer_rad" \
   acceleration --set "autonomy.driver={plugin: $faulty, config: {fault: nan}}"
-dnf driver_slow "^driver plug-in 'faulty' \(.*\) took [0-9]+ ms in update, over its time budget of 100 ms" \
+dnf driver_slow "^driver plug-in 'faulty' \(.*\) did not return from update within its time budget of 100 ms" \
   acceleration --set "autonomy.driver={plugin: $faulty, time_budget_ms: 100, config: {fault: slow, slow_ms: 300}}"
+dnf driver_hangs "^driver plug-in 'faulty' \(.*\) did not return from update within its time budget of 200 ms" \
+  acceleration --set "autonomy.driver={plugin: $faulty, time_budget_ms: 200, config: {fault: hang}}"
+dnf slam_hangs "^slam plug-in 'faulty' \(.*\) did not return from process within its time budget of 200 ms" \
+  acceleration --set perception=cone_sensor \
+  --set "autonomy.slam={plugin: $faulty, time_budget_ms: 200, config: {fault: hang}}"
+dnf perception_hangs "^perception plug-in 'faulty' \(.*\) did not return from on_lidar within its time budget of 200 ms" \
+  acceleration --set "autonomy.perception={plugin: $faulty, time_budget_ms: 200, config: {fault: hang}}"
 dnf slam_throws "^slam plug-in 'faulty' \(.*\) threw in process: injected fault" \
   acceleration --set perception=cone_sensor \
   --set "autonomy.slam={plugin: $faulty, config: {fault: throw}}"

@@ -2,7 +2,7 @@
 // fails (tests/app/sdk_test.sh). Its driver creeps straight ahead, its SLAM dead-reckons, its
 // perception finds nothing; each does its fault from `after_s` sim seconds on.
 //
-// config: {fault: none | throw | nan | slow, after_s: 2, slow_ms: 300, refuse: false}
+// config: {fault: none | throw | nan | slow | hang, after_s: 2, slow_ms: 300, refuse: false}
 
 #include <chrono>
 #include <conesim/sdk.hpp>
@@ -26,8 +26,9 @@ struct Fault {
     if (config.boolean("refuse", false))
       throw std::invalid_argument("refuse: this plug-in was told to refuse its configuration");
     kind = config.text("fault", "none");
-    if (kind != "none" && kind != "throw" && kind != "nan" && kind != "slow")
-      throw std::invalid_argument("fault: expected none, throw, nan or slow, got '" + kind + "'");
+    if (kind != "none" && kind != "throw" && kind != "nan" && kind != "slow" && kind != "hang")
+      throw std::invalid_argument("fault: expected none, throw, nan, slow or hang, got '" + kind +
+                                  "'");
     after_us = static_cast<TimeUs>(config.number("after_s", 2.0) * 1e6);
     slow_ms = config.number("slow_ms", 300.0);
   }
@@ -38,6 +39,8 @@ struct Fault {
     if (kind == "throw") throw std::runtime_error(std::string("injected fault in ") + where);
     if (kind == "slow")
       std::this_thread::sleep_for(std::chrono::microseconds(static_cast<long>(slow_ms * 1e3)));
+    // never returns (until the process ends)
+    while (kind == "hang") std::this_thread::sleep_for(std::chrono::milliseconds(50));
     return kind == "nan";
   }
 };
