@@ -332,7 +332,9 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   std::unique_ptr<sdk::Driver> driver;
   try {
     if (s.slam != "none") slam = std::make_unique<SlamRunner>(s, track, car);
-    if (s.driver_plugin)
+    if (options.make_driver)
+      driver = options.make_driver(run_info->info);
+    else if (s.driver_plugin)
       driver = std::make_unique<GuardedDriver>(
           *s.driver_plugin, make_plugin_driver(*s.driver_plugin, run_info->info));
   } catch (const PluginFailure& e) {
@@ -436,6 +438,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       // perception de-skews and tracks with the odometry's motion (the truth without SLAM)
       rig.set_motion(slam ? odometry_motion
                           : slam::frontend::SweepMotion{estimate.speed_mps, estimate.yaw_rate_rps});
+      if (options.on_tick) options.on_tick(t, referee.result());
       try {
         sdk::DriverInput input;
         input.now_us = t;
