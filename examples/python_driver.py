@@ -65,6 +65,23 @@ def drive(obs, start, state):
     return steer, max(-6.0, min(4.0, 2.0 * (speed - v))), False
 
 
+class PurePursuit:
+    """The same driver as a class, for a normal `conesim run` (docs/sdk.md, "Python"):
+
+        ./conesim run autocross --set 'autonomy.driver={plugin: build/python/libconesim_python_driver.so,
+            config: {file: examples/python_driver.py, class: PurePursuit}}'
+    """
+
+    def __init__(self, run, options):
+        self.start = None
+        self.state = {"odometer_m": 0.0, "finished": False}
+
+    def update(self, obs):
+        if self.start is None:
+            self.start = obs["pose"].copy()
+        return drive(obs, self.start, self.state)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenario", nargs="?", default="autocross")

@@ -11,7 +11,6 @@
 // scoring and run folder); the Python program is its driver, called at every driver tick
 // through the same sdk::Driver interface as the reference driver or a plug-in (docs/sdk.md).
 
-#include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
@@ -26,6 +25,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "python/observation.hpp"
 #include "sim/autonomy.hpp"
 #include "sim/regress.hpp"
 #include "sim/run.hpp"
@@ -97,12 +97,6 @@ class ChannelDriver final : public sdk::Driver {
   std::shared_ptr<Channel> channel_;
 };
 
-// a NumPy array of n rows of `cols` doubles
-py::array_t<double> rows(size_t n, size_t cols) {
-  return py::array_t<double>(
-      std::vector<py::ssize_t>{static_cast<py::ssize_t>(n), static_cast<py::ssize_t>(cols)});
-}
-
 py::dict referee_dict(const sim::RefereeResult& r) {
   py::dict d;
   d["completed"] = r.completed;
@@ -118,36 +112,14 @@ py::dict referee_dict(const sim::RefereeResult& r) {
 }
 
 py::dict tick_dict(const Tick& tick, bool done) {
-  py::dict d;
-  d["t_s"] = core::to_seconds(tick.t);
-  d["done"] = done;
-  py::array_t<double> pose(3);
-  pose.mutable_at(0) = tick.pose.x_m;
-  pose.mutable_at(1) = tick.pose.y_m;
-  pose.mutable_at(2) = tick.pose.yaw_rad;
-  d["pose"] = pose;
-  d["speed_mps"] = tick.speed_mps;
-  d["yaw_rate_rps"] = tick.yaw_rate_rps;
-  py::array_t<double> cones = rows(tick.cones.size(), 2);
-  py::array_t<int32_t> classes(static_cast<py::ssize_t>(tick.cones.size()));
-  for (size_t i = 0; i < tick.cones.size(); ++i) {
-    cones.mutable_at(i, 0) = tick.cones[i].x_m;
-    cones.mutable_at(i, 1) = tick.cones[i].y_m;
-    classes.mutable_at(i) = static_cast<int32_t>(tick.cones[i].cls);
-  }
-  d["cones"] = cones;
-  d["cone_classes"] = classes;
-  py::array_t<double> map = rows(tick.map.size(), 2);
-  py::array_t<int32_t> map_classes(static_cast<py::ssize_t>(tick.map.size()));
-  for (size_t i = 0; i < tick.map.size(); ++i) {
-    map.mutable_at(i, 0) = tick.map[i].x_m;
-    map.mutable_at(i, 1) = tick.map[i].y_m;
-    map_classes.mutable_at(i) = static_cast<int32_t>(tick.map[i].cls);
-  }
-  d["map"] = map;
-  d["map_classes"] = map_classes;
-  d["map_complete"] = tick.map_complete;
-  return d;
+  sdk::Estimate estimate;
+  estimate.pose = tick.pose;
+  estimate.speed_mps = tick.speed_mps;
+  estimate.yaw_rate_rps = tick.yaw_rate_rps;
+  estimate.map = {tick.map.data(), tick.map.size()};
+  estimate.map_complete = tick.map_complete ? 1 : 0;
+  return python::observation(core::to_seconds(tick.t), estimate,
+                             {tick.t, {tick.cones.data(), tick.cones.size()}}, done);
 }
 
 // a --set value from a Python value: YAML text (lists and dicts as flow YAML)

@@ -1,7 +1,10 @@
 """The Python module end to end, as a Python user drives conesim (tests/CMakeLists.txt runs it
 with Debian's python3 and the module on PYTHONPATH): the example pure-pursuit completes
 autocross, a run repeats to the bit from its seed, bad input is a ValueError naming the key,
-a NaN command and an early close() end the run with a DNF saying so and write its folder."""
+a NaN command and an early close() end the run with a DNF saying so and write its folder; the
+same class as the driver of a `conesim run` (the Python driver plug-in) gives the lock-step
+run's metrics, and an exception in it ends the run with a DNF naming the plug-in.
+usage: python_test.py SOURCE_DIR CONESIM_BINARY PYTHON_DRIVER_PLUGIN"""
 import json
 import math
 import os
@@ -12,7 +15,7 @@ import tempfile
 import conesim
 import numpy as np
 
-source = sys.argv[1]
+source, conesim_bin, python_plugin = sys.argv[1:4]
 failures = []
 
 
@@ -79,6 +82,31 @@ sim.close()
 closed = json.load(open(os.path.join(work, "closed/metrics.json")))
 check("close() early is a DNF", not closed["completed"] and "closed the simulation" in closed["dnf_reason"],
       closed["dnf_reason"])
+
+# the example's class as the driver of a normal `conesim run`: the same run as in lock-step
+def conesim_run(out, driver_file, cls):
+    spec = "{plugin: %s, config: {file: %s, class: %s}}" % (python_plugin, driver_file, cls)
+    return subprocess.run([conesim_bin, "run", "autocross", "--no-plot", "--out", out,
+                           "--set", "autonomy.driver=" + spec], capture_output=True, text=True)
+
+run = conesim_run(os.path.join(work, "class"), os.path.join(source, "examples/python_driver.py"), "PurePursuit")
+check("class drives conesim run", run.returncode == 0, run.stdout + run.stderr)
+in_run = json.load(open(os.path.join(work, "class/metrics.json")))
+timing = ("wall_time_s", "real_time_factor", "autonomy")
+same = {k: v for k, v in in_run.items() if k not in timing} == {k: v for k, v in metrics.items() if k not in timing}
+check("class in conesim run gives the lock-step metrics", same, (in_run["final_time_s"], metrics["final_time_s"]))
+check("metrics name the Python driver", in_run["autonomy"]["driver"] == "plugin:python", in_run.get("autonomy"))
+
+# an exception in the class ends the run with a DNF naming the plug-in and the exception
+broken = os.path.join(work, "broken.py")
+with open(broken, "w") as f:
+    f.write("class Broken:\n    def __init__(self, run, options):\n        self.n = 0\n"
+            "    def update(self, obs):\n        self.n += 1\n"
+            "        if self.n > 30:\n            raise KeyError('no such cone')\n        return (0.0, 1.0)\n")
+run = conesim_run(os.path.join(work, "broken"), broken, "Broken")
+reason = json.load(open(os.path.join(work, "broken/metrics.json")))["dnf_reason"]
+check("exception in the class is a DNF", run.returncode == 1 and reason.startswith("driver plug-in 'python'")
+      and "KeyError" in reason and "no such cone" in reason, reason)
 
 print(f"{len(failures)} failed")
 sys.exit(1 if failures else 0)
