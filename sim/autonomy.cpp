@@ -200,6 +200,8 @@ void PluginGuard::check_finite(const char* what, double value) const {
 }
 
 struct PluginCallThread::State {
+  // one call at a time, whichever thread makes it
+  std::mutex call;
   std::mutex mutex;
   std::condition_variable wake;
   std::function<void()> job;
@@ -242,6 +244,7 @@ PluginCallThread::~PluginCallThread() {
 }
 
 bool PluginCallThread::run(std::function<void()> job, double timeout_ms) {
+  std::lock_guard<std::mutex> one_call(state_->call);
   std::unique_lock<std::mutex> lock(state_->mutex);
   if (state_->abandoned) return false;
   state_->job = std::move(job);

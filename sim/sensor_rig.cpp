@@ -279,17 +279,25 @@ void SensorRig::end_sweep() {
   // estimates now
   const slam::frontend::LidarConeDetector* detector =
       perception_ ? perception_->lidar_detector() : nullptr;
-  // or a perception plug-in in its place
+  // or a perception plug-in in its place: on the worker when it has only the LiDAR; one with
+  // the camera too is called here at collection, in order with its stereo calls (determinism)
+  const bool plugin_lidar = perception_ && perception_->is_plugin() && perception_->uses_lidar();
   const PerceptionRunner* plugin =
-      perception_ && perception_->is_plugin() && perception_->uses_lidar() ? perception_.get()
-                                                                           : nullptr;
+      plugin_lidar && !perception_->uses_camera() ? perception_.get() : nullptr;
   const slam::frontend::SweepMotion motion =
       perception_ ? perception_->motion() : slam::frontend::SweepMotion{};
   pending_scan_ =
       worker_->post([this, sweep = casting_, start, begin, columns, detector, plugin, motion, end,
                      window = pose_window(lidar_->column_time(start, begin), end)] {
         sweep->cast(*lidar_, lidar_rng_, start, begin, columns, window);
-        SweepResult r{std::move(sweep->scan), std::nullopt, sweep->cast_ms, 0.0, std::nullopt, {}};
+        SweepResult r{std::move(sweep->scan),
+                      std::nullopt,
+                      sweep->cast_ms,
+                      0.0,
+                      std::nullopt,
+                      {},
+                      end,
+                      motion};
         if (detector) {
           const auto t0 = clock::now();
           r.detections = detector->detect(r.scan.cloud, motion);
@@ -325,12 +333,23 @@ void SensorRig::restart_sweep() {
 void SensorRig::collect_sweep() {
   for (std::future<void>& part : pending_parts_) part.get();
   pending_parts_.clear();
-  const SweepResult result = pending_scan_.get();
+  SweepResult result = pending_scan_.get();
   const sensors::LidarScan& scan = result.scan;
   stats_.lidar_ms_total += result.cast_ms;
   const int index = stats_.lidar_scans++;
   stats_.lidar_points += static_cast<int64_t>(scan.cloud.points.size());
 
+  // a plug-in with the camera too sees the sweep now, between its stereo frames
+  if (perception_ && perception_->is_plugin() && perception_->uses_lidar() &&
+      perception_->uses_camera()) {
+    const auto t0 = clock::now();
+    try {
+      result.plugin_frame = perception_->plugin_lidar(scan.cloud, result.end_us, result.motion);
+    } catch (const PluginFailure& e) {
+      result.plugin_failure = e.what();
+    }
+    result.detect_ms = ms_between(t0, clock::now());
+  }
   // a plug-in's cones likewise, scored on what it delivers; its failure ends the run
   if (!result.plugin_failure.empty() && failure_.empty()) failure_ = result.plugin_failure;
   if (result.plugin_frame && referee_) {

@@ -140,6 +140,9 @@ class SensorRig {
     // a perception plug-in's cones, or why it failed
     std::optional<core::ConeObservations> plugin_frame;
     std::string plugin_failure;
+    // the sweep's end and the autonomy's motion then (a plug-in called at collection)
+    core::TimeUs end_us = 0;
+    slam::frontend::SweepMotion motion;
   };
   std::future<SweepResult> pending_scan_;
   std::vector<std::future<void>> pending_parts_;
