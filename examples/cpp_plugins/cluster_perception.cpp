@@ -41,7 +41,7 @@ class ClusterPerception final : public Perception {
 
   ConeFrame on_lidar(const LidarSweep& sweep, const Motion& motion) override {
     struct P {
-      double x, y, z, intensity;
+      double x, y, z, intensity, range;
     };
     std::map<std::pair<int, int>, std::vector<P>> cells;
     const double sweep_s = 1e-6 * static_cast<double>(sweep.end_us - sweep.stamp_us);
@@ -63,7 +63,8 @@ class ClusterPerception final : public Perception {
       const double r = std::hypot(x, y);
       if (r < 1.0 || r > max_range_m_) continue;
       cells[{static_cast<int>(std::floor(x / 0.25)), static_cast<int>(std::floor(y / 0.25))}]
-          .push_back({x, y, z, p.intensity});
+          .push_back(
+              {x, y, z, p.intensity, std::sqrt(p.x_m * p.x_m + p.y_m * p.y_m + p.z_m * p.z_m)});
     }
 
     // clusters: connected occupied cells (8-neighbourhood)
@@ -108,23 +109,24 @@ class ClusterPerception final : public Perception {
 
  private:
   // the stripes: a small cone's stripe is the band 0.11-0.20 m above the ground (FSG: 35-62 %
-  // of 325 mm); white on blue (brighter than the body), black on yellow (darker). A cluster
-  // reaching above 0.36 m is a big orange cone.
+  // of 325 mm), white on blue, black on yellow. Each point's reflectivity (its intensity with
+  // the range fall-off undone, VLP-16-like: 40 m) is compared with what a blue cone (dark body,
+  // white stripe) and a yellow one (bright body, black stripe) would give there; the likelier
+  // wins when clearly so. A cluster reaching above 0.36 m is a big orange cone.
   template <typename Points>
   static ConeClass colour(const Points& pts, double top) {
     if (top > 0.36) return ConeClass::kOrangeBig;
-    double stripe = 0, body = 0;
-    int n_stripe = 0, n_body = 0;
+    double blue_error = 0.0, yellow_error = 0.0;
     for (const auto& p : pts) {
-      if (p.z > 0.125 && p.z < 0.19)
-        stripe += p.intensity, ++n_stripe;
-      else if (p.z < 0.10 || p.z > 0.215)
-        body += p.intensity, ++n_body;
+      const double reflectivity =
+          p.intensity * (1.0 + p.range * p.range / (40.0 * 40.0)) / 255.0 / 0.8;
+      const bool stripe = p.z > 0.114 && p.z < 0.2;
+      const double blue = stripe ? 0.85 : 0.15, yellow = stripe ? 0.05 : 0.65;
+      blue_error += (reflectivity - blue) * (reflectivity - blue);
+      yellow_error += (reflectivity - yellow) * (reflectivity - yellow);
     }
-    if (n_stripe == 0 || n_body == 0) return ConeClass::kUnknown;
-    stripe /= n_stripe, body /= n_body;
-    if (stripe > body * 1.2) return ConeClass::kBlue;
-    if (body > stripe * 1.2) return ConeClass::kYellow;
+    if (blue_error < 0.5 * yellow_error) return ConeClass::kBlue;
+    if (yellow_error < 0.5 * blue_error) return ConeClass::kYellow;
     return ConeClass::kUnknown;
   }
 

@@ -83,14 +83,16 @@ expect_json example_slam_map "$work/slam/metrics.json" \
 expect_json example_slam_associations "$work/slam/metrics.json" \
   "m['slam']['plugin:landmark_slam']['da_correct_fraction'] > 0.9" True
 
-# 4: the example perception's cones of each LiDAR sweep are scored and drive acceleration
-check example_perception 0 "$bin" run acceleration \
+# 4: the example perception's cones of each LiDAR sweep are scored and drive autocross
+check example_perception 0 "$bin" run autocross \
   --set "autonomy.perception=plugin:$ex/libcluster_perception.so" --no-plot --out "$work/perception"
 expect_json example_perception_mode "$work/perception/metrics.json" "m['perception']['mode']" plugin
 expect_json example_perception_frames "$work/perception/metrics.json" \
   "m['sensors']['lidar_scans'] > 20 and m['perception']['recall_15m'] > 0.4" True
 expect_json example_perception_place "$work/perception/metrics.json" \
   "m['perception']['position_rmse_m'] < 0.1 and m['perception']['precision'] > 0.9" True
+expect_json example_perception_colour "$work/perception/metrics.json" \
+  "m['perception']['colour_accuracy'] > 0.7" True
 
 # 5: what is not a usable plug-in is refused before anything is written, the file named
 refused missing_file "autonomy\.driver: .*nowhere\.so: no such plug-in file" autocross \
