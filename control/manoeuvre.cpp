@@ -97,8 +97,8 @@ Rollout roll(const Context& c, const Pose2& start, double speed, double steer_no
     on = project_onto(c.path, pose.position(), on.segment, window);
     r.max_deviation = std::max(r.max_deviation, on.distance_m);
     // the speed as the driver commands it, within what the car does
-    const double accel = std::clamp(c.speed_command(speed, arc_at(c.s, on)), -p.max_decel_mps2,
-                                    p.max_accel_mps2);
+    const double accel =
+        std::clamp(c.speed_command(speed, arc_at(c.s, on)), -p.max_decel_mps2, p.max_accel_mps2);
     speed = std::max(0.5, speed + accel * dt);
   }
   r.end = pose;
@@ -122,10 +122,12 @@ Manoeuvre Manoeuvre::advanced(double dt_s) const {
 double signed_footprint_clearance(const Pose2& pose, const std::vector<MapCone>& cones,
                                   const Footprint& f) {
   double best = std::numeric_limits<double>::infinity();
+  const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
   for (const MapCone& cone : cones) {
-    if ((cone.position - pose.position()).squaredNorm() > kFootprintReachM * kFootprintReachM)
-      continue;
-    const Vec2 q = pose.inverse_transform(cone.position);
+    const Vec2 rel = cone.position - pose.position();
+    if (rel.squaredNorm() > kFootprintReachM * kFootprintReachM) continue;
+    // the cone in the car's frame
+    const Vec2 q(c * rel.x() + s * rel.y(), -s * rel.x() + c * rel.y());
     const double dx = std::max(-f.rear_m - q.x(), q.x() - f.front_m);
     const double dy = std::abs(q.y()) - f.half_width_m;
     // outside: Euclidean distance to the box; inside: minus the distance to its nearest edge
@@ -137,10 +139,10 @@ double signed_footprint_clearance(const Pose2& pose, const std::vector<MapCone>&
 }
 
 ManoeuvreChoice choose_manoeuvre(const ManoeuvreParams& p, const Pose2& pose, double speed_mps,
-                                 double steer_now_rad, const Path& path,
-                                 const PathProjection& here, const SpeedCommand& speed_command,
-                                 const std::vector<MapCone>& cones,
-                                 double nominal_steer_rad, const Manoeuvre* previous) {
+                                 double steer_now_rad, const Path& path, const PathProjection& here,
+                                 const SpeedCommand& speed_command,
+                                 const std::vector<MapCone>& cones, double nominal_steer_rad,
+                                 const Manoeuvre* previous) {
   ManoeuvreChoice best{{}, nominal_steer_rad, 0.0, true};
   if (path.segment_count() == 0) return best;
   const double speed = std::max(0.5, speed_mps);
@@ -168,8 +170,7 @@ ManoeuvreChoice choose_manoeuvre(const ManoeuvreParams& p, const Pose2& pose, do
     const Vec2 b = path.segment_end(r.end_on_path.segment);
     const double heading =
         std::abs(core::normalize_angle(r.end.yaw - std::atan2(b.y() - a.y(), b.x() - a.x())));
-    return (s_end - s_here) - kLateralWeight * r.end_on_path.distance_m -
-           kHeadingWeight * heading -
+    return (s_end - s_here) - kLateralWeight * r.end_on_path.distance_m - kHeadingWeight * heading -
            kDeviationWeight * std::max(0.0, r.max_deviation - kFreeDeviationM);
   };
 
@@ -225,7 +226,8 @@ ManoeuvreChoice choose_manoeuvre(const ManoeuvreParams& p, const Pose2& pose, do
       }
   // nothing keeps clear (a cone seen late, a path through cones): the roll-outs know no better
   // than the tracker, so it steers
-  if (best.clearance_m < 0.0 && !best.nominal) best = {{}, nominal_steer_rad, nominal.clearance, true};
+  if (best.clearance_m < 0.0 && !best.nominal)
+    best = {{}, nominal_steer_rad, nominal.clearance, true};
   return best;
 }
 

@@ -92,8 +92,8 @@ using SpeedCommand = std::function<double(double v, double s)>;
 ManoeuvreChoice choose_manoeuvre(const ManoeuvreParams& params, const core::Pose2& pose,
                                  double speed_mps, double steer_now_rad, const Path& path,
                                  const PathProjection& here, const SpeedCommand& speed_command,
-                                 const std::vector<core::MapCone>& cones,
-                                 double nominal_steer_rad, const Manoeuvre* previous = nullptr);
+                                 const std::vector<core::MapCone>& cones, double nominal_steer_rad,
+                                 const Manoeuvre* previous = nullptr);
 
 /// Signed distance between the footprint with the rear axle at `pose` and the nearest cone's
 /// base, metres: negative when a cone's base reaches into the footprint (by that much).

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 namespace conesim::control {
 
@@ -31,6 +32,9 @@ constexpr int kMaxChainRounds = 3;
 constexpr double kMinStepShare = 0.5;
 // a circuit walk may stop at the start once it has gone this far, metres
 constexpr double kMinCircuitM = 50.0;
+constexpr double kPi = std::numbers::pi;
+// a link of a closed boundary this many times longer than both its neighbours spans a gap
+constexpr double kGapLinkShare = 1.4;
 
 // extra cost of a cone in a chain of `side_class`; negative when it may not be used
 double class_penalty(ConeClass cls, ConeClass side_class, const PlannerParams& params) {
@@ -200,6 +204,162 @@ Boundaries chain_boundaries(const std::vector<MapCone>& cones, const Pose2& from
     if (!conflict) break;
   }
   return b;
+}
+
+namespace {
+
+// where a cone lies beside a closed reference line with arc lengths s
+struct Beside {
+  bool near = false;      // within max_side_distance_m
+  double offset_m = 0.0;  // positive left
+  double s = 0.0;
+};
+
+Beside beside(const Path& reference, const std::vector<double>& s, const Vec2& p,
+              const PlannerParams& params) {
+  Beside b;
+  const PathProjection at = project_onto(reference, p, 0, reference.segment_count());
+  if (at.distance_m > params.max_side_distance_m) return b;
+  const Vec2 tangent = reference.segment_end(at.segment) - reference.points[at.segment];
+  b.near = true;
+  b.offset_m = (core::cross(tangent, p - at.point) > 0.0 ? 1.0 : -1.0) * at.distance_m;
+  b.s = s[at.segment] + at.t * (s[at.segment + 1] - s[at.segment]);
+  return b;
+}
+
+// a blue cone well right of the line or a yellow one well left of it: further than half the
+// narrowest lane (a line that cuts a corner, such as a smoothed lap, passes close to the inner
+// cones and may pass them on the wrong side by a little)
+bool wrong_side(ConeClass cls, const Beside& b) {
+  constexpr double kWrongSideM = 0.75;
+  return b.near && ((cls == ConeClass::kBlue && b.offset_m < -kWrongSideM) ||
+                    (cls == ConeClass::kYellow && b.offset_m > kWrongSideM));
+}
+
+std::vector<double> closed_arc_lengths(const Path& reference) {
+  std::vector<double> s(reference.segment_count() + 1, 0.0);
+  for (size_t i = 0; i + 1 < s.size(); ++i)
+    s[i + 1] = s[i] + (reference.segment_end(i) - reference.points[i]).norm();
+  return s;
+}
+
+}  // namespace
+
+Boundaries boundaries_along(const Path& reference, const std::vector<MapCone>& cones,
+                            const PlannerParams& params) {
+  Boundaries b;
+  if (!reference.closed || reference.points.size() < 3) return b;
+  const std::vector<double> s = closed_arc_lengths(reference);
+  const double lap_m = s.back();
+
+  struct Placed {
+    double s;
+    Vec2 p;
+  };
+  std::vector<Placed> left, right;
+  for (const MapCone& c : cones) {
+    if (c.cls == ConeClass::kUnknown) continue;
+    const Beside at = beside(reference, s, c.position, params);
+    if (!at.near || wrong_side(c.cls, at)) continue;
+    const bool on_left =
+        c.cls == ConeClass::kBlue || (c.cls != ConeClass::kYellow && at.offset_m > 0.0);
+    (on_left ? left : right).push_back({at.s, c.position});
+  }
+  auto order = [&](std::vector<Placed>& side, std::vector<Vec2>& chain, bool& closed) {
+    std::sort(side.begin(), side.end(), [](const Placed& a, const Placed& c) { return a.s < c.s; });
+    double widest = 0.0;
+    for (size_t i = 0; i < side.size(); ++i) {
+      const double next = i + 1 < side.size() ? side[i + 1].s : side.front().s + lap_m;
+      widest = std::max(widest, next - side[i].s);
+      chain.push_back(side[i].p);
+    }
+    closed = side.size() >= kMinClosedChainCones && widest <= 2.0 * params.max_link_m;
+  };
+  order(left, b.left, b.left_closed);
+  order(right, b.right, b.right_closed);
+  return b;
+}
+
+namespace {
+
+// the point a fraction t along the arc from a to b of the circle through a, b and c (the chord
+// when the three are nearly in line)
+Vec2 on_arc(const Vec2& a, const Vec2& b, const Vec2& c, double t) {
+  const Vec2 chord = (1.0 - t) * a + t * b;
+  const double d = 2.0 * core::cross(b - a, c - a);
+  if (std::abs(d) < 1e-9 * (b - a).squaredNorm() * (c - a).norm()) return chord;
+  // the circle's centre relative to a
+  const Vec2 ab = b - a, ac = c - a;
+  const Vec2 o = a + Vec2(ac.y() * ab.squaredNorm() - ab.y() * ac.squaredNorm(),
+                          ab.x() * ac.squaredNorm() - ac.x() * ab.squaredNorm()) /
+                         d;
+  const double r = (a - o).norm();
+  const double a0 = std::atan2(a.y() - o.y(), a.x() - o.x());
+  const double sweep = std::remainder(std::atan2(b.y() - o.y(), b.x() - o.x()) - a0, 2.0 * kPi);
+  const double angle = a0 + t * sweep;
+  return o + r * Vec2(std::cos(angle), std::sin(angle));
+}
+
+// a closed chain with points added where one link is much longer than both its neighbours (a
+// cone or more missing from an even spacing): on the circle through the link's ends and the cone
+// before it, on the one through them and the cone after it, or on the chord, whichever reaches
+// furthest into the track (`track_side` +1: the track lies left of the chain's direction, -1:
+// right), so that a missing cone on a curve's inside is assumed where it may stand; the added
+// points also go to `added`
+std::vector<Vec2> filled(const std::vector<Vec2>& chain, double track_side,
+                         std::vector<Vec2>& added) {
+  const size_t n = chain.size();
+  if (n < 4) return chain;
+  auto at = [&](size_t i) -> const Vec2& { return chain[i % n]; };
+  std::vector<Vec2> out;
+  for (size_t i = 0; i < n; ++i) {
+    out.push_back(at(i));
+    const Vec2 &p0 = at(i + n - 1), &p1 = at(i), &p2 = at(i + 1), &p3 = at(i + 2);
+    const double link = (p2 - p1).norm();
+    const double neighbours = std::max((p1 - p0).norm(), (p3 - p2).norm());
+    if (neighbours <= 0.0 || link <= kGapLinkShare * neighbours) continue;
+    const Vec2 along = (p2 - p1) / link;
+    const int pieces = std::max(2, static_cast<int>(std::lround(link / neighbours)));
+    for (int j = 1; j < pieces; ++j) {
+      const double t = static_cast<double>(j) / pieces;
+      const Vec2 chord = (1.0 - t) * p1 + t * p2;
+      Vec2 best = chord;
+      for (const Vec2& q : {on_arc(p1, p2, p0, t), on_arc(p1, p2, p3, t)})
+        if (track_side * core::cross(along, q - chord) >
+            track_side * core::cross(along, best - chord))
+          best = q;
+      out.push_back(best);
+      added.push_back(best);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+Boundaries with_gaps_filled(const Boundaries& b, std::vector<MapCone>& cones) {
+  Boundaries out = b;
+  std::vector<Vec2> added;
+  if (b.left_closed) {
+    out.left = filled(b.left, -1.0, added);
+    for (const Vec2& p : added) cones.push_back({-1, ConeClass::kBlue, p, Eigen::Matrix2d::Zero()});
+  }
+  added.clear();
+  if (b.right_closed) {
+    out.right = filled(b.right, 1.0, added);
+    for (const Vec2& p : added)
+      cones.push_back({-1, ConeClass::kYellow, p, Eigen::Matrix2d::Zero()});
+  }
+  return out;
+}
+
+std::vector<MapCone> with_sides_kept(const Path& reference, std::vector<MapCone> cones,
+                                     const PlannerParams& params) {
+  if (!reference.closed || reference.points.size() < 3) return cones;
+  const std::vector<double> s = closed_arc_lengths(reference);
+  for (MapCone& c : cones)
+    if (wrong_side(c.cls, beside(reference, s, c.position, params))) c.cls = ConeClass::kUnknown;
+  return cones;
 }
 
 std::vector<Vec2> walk_centre_line(const Boundaries& boundaries, const Pose2& from,

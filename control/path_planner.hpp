@@ -52,6 +52,29 @@ struct Boundaries {
 Boundaries chain_boundaries(const std::vector<core::MapCone>& cones, const core::Pose2& from,
                             const PlannerParams& params, double max_length_m, bool whole_circuit);
 
+/// The boundaries of a whole circuit ordered along a closed reference line round it (the car's
+/// own lap, say), in the order of each cone's nearest point along the line: blue cones within
+/// max_side_distance_m of it to the left, yellow ones to the right, orange ones to the side they
+/// lie on; a blue or yellow cone more than 0.75 m on the wrong side of the line (a wrong colour)
+/// is left out. Where the chains cannot follow a turn (the inner cones of a
+/// minimum hairpin turn by more than a link may) the line the car drove still orders the cones.
+/// A side is closed when it has cones all round: no stretch of the line longer than
+/// 2 max_link_m without one.
+Boundaries boundaries_along(const Path& reference, const std::vector<core::MapCone>& cones,
+                            const PlannerParams& params);
+
+/// Closed boundaries with points added in their gaps, where a link is much longer than both its
+/// neighbours (cones missing from an even spacing): on a smooth curve through the cones either
+/// side, where the missing cones would stand. The added points are appended to `cones` as
+/// cones of the side's colour (id -1), so that a footprint check keeps clear of them too.
+Boundaries with_gaps_filled(const Boundaries& boundaries, std::vector<core::MapCone>& cones);
+
+/// The cones with those of a wrong colour for their side of a closed reference line (a blue cone
+/// more than 0.75 m right of it, a yellow one left, within max_side_distance_m) made unknown: still
+/// obstacles, no longer a side the line must keep.
+std::vector<core::MapCone> with_sides_kept(const Path& reference, std::vector<core::MapCone> cones,
+                                           const PlannerParams& params);
+
 /// Walks the centre line between the boundaries from `from`, one step at a time, up to
 /// max_length_m. With `whole_circuit` the chains are closed loops and the walk stops when it
 /// comes back across the start; the result then excludes the start point's duplicate.

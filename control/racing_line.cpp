@@ -91,7 +91,9 @@ std::vector<double> least_curvature_offsets(const Corridor& c, const std::vector
   for (size_t i = 0; i < n; ++i)
     if (lo[i] >= hi[i]) active[i] = 2, pin[i] = 0.5 * (lo[i] + hi[i]);
   Eigen::VectorXd x = Eigen::VectorXd::Zero(static_cast<long>(n));
+  // the pins change only the diagonal: one ordering serves every solve
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  solver.analyzePattern(h);
   for (int round = 0; round < kMaxActiveSetRounds; ++round) {
     // solve with the active offsets pinned
     Eigen::SparseMatrix<double> hp = h;
@@ -102,7 +104,7 @@ std::vector<double> least_curvature_offsets(const Corridor& c, const std::vector
       hp.coeffRef(static_cast<long>(i), static_cast<long>(i)) += kPinWeight;
       rhs[static_cast<long>(i)] += kPinWeight * target;
     }
-    solver.compute(hp);
+    solver.factorize(hp);
     if (solver.info() != Eigen::Success) break;
     x = solver.solve(rhs);
 
@@ -165,9 +167,11 @@ Corridor make_corridor(const std::vector<Vec2>& centre, bool closed, const std::
 double footprint_clearance(const core::Pose2& pose, const std::vector<MapCone>& cones,
                            const Footprint& f, Vec2* at) {
   double best = std::numeric_limits<double>::infinity();
+  const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
   for (const MapCone& cone : cones) {
-    const Vec2 local = pose.inverse_transform(cone.position);
-    if (local.squaredNorm() > kFootprintReachM * kFootprintReachM) continue;
+    const Vec2 rel = cone.position - pose.position();
+    if (rel.squaredNorm() > kFootprintReachM * kFootprintReachM) continue;
+    const Vec2 local(c * rel.x() + s * rel.y(), -s * rel.x() + c * rel.y());
     const double d = distance_to_box(local, -f.rear_m, f.front_m, f.half_width_m) -
                      0.5 * core::cone_size(cone.cls).base_m;
     if (d < best) {
@@ -205,8 +209,7 @@ RacingLine plan_racing_line(const Corridor& c, const std::vector<MapCone>& cones
       if (d2 < nearest_d2) nearest_d2 = d2, nearest = i;
     }
     if (nearest_d2 > kSideReachM * kSideReachM) continue;
-    const double cone_shrink =
-        f.half_width_m + f.margin_m + 0.5 * core::cone_size(cone.cls).base_m;
+    const double cone_shrink = f.half_width_m + f.margin_m + 0.5 * core::cone_size(cone.cls).base_m;
     for (int k = -1; k <= 1; ++k) {
       const size_t j = neighbour(nearest, k, n, c.closed);
       if (lo[j] > hi[j]) continue;  // narrower than the car: the line keeps to the middle

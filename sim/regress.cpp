@@ -1,9 +1,5 @@
 #include "sim/regress.hpp"
 
-#include <fcntl.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -15,6 +11,7 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "sim/process_pool.hpp"
 #include "sim/report.hpp"
 #include "sim/scenario.hpp"
 #include "tracks/io.hpp"
@@ -54,42 +51,6 @@ struct PlannedTrack {
   fs::path file;
   EventType event = EventType::kTrackdrive;
 };
-
-// starts `argv` with stdout and stderr into log_file; returns the child's pid
-pid_t spawn(const std::vector<std::string>& argv, const fs::path& log_file) {
-  const pid_t pid = fork();
-  if (pid < 0) return -1;
-  if (pid == 0) {
-    const int fd = open(log_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (fd >= 0) {
-      dup2(fd, STDOUT_FILENO);
-      dup2(fd, STDERR_FILENO);
-      close(fd);
-    }
-    std::vector<char*> args;
-    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
-    execv(args[0], args.data());
-    _exit(127);
-  }
-  return pid;
-}
-
-// the exit status of a finished child: its code, or 128 + the signal that ended it
-int exit_status(int status) {
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-}
-
-// the last non-empty line of a log
-std::string last_line(const fs::path& file) {
-  std::ifstream in(file);
-  std::string line, last;
-  while (std::getline(in, line)) {
-    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
-    if (!line.empty()) last = line;
-  }
-  return last;
-}
 
 // a short log whole, its lines joined by " / " (at most 300 characters)
 std::string log_text(const fs::path& file) {
@@ -181,9 +142,9 @@ void add_generated(const fs::path& self, const RegressOptions& o,
     if (!o.generated_profile.empty()) argv.insert(argv.end(), {"--profile", o.generated_profile});
     argv.insert(argv.end(), {"--out", file.string()});
     const fs::path log = dir / ("generated-" + name + ".log");
-    const pid_t pid = spawn(argv, log);
     int status = 0;
-    if (pid < 0 || waitpid(pid, &status, 0) < 0 || exit_status(status) != 0)
+    run_processes({{argv, log}}, 1, nullptr, [&](size_t, int code) { status = code; });
+    if (status != 0)
       throw InputError(
           "--generated", 0,
           "`conesim track generate` failed for seed " + std::to_string(k) + ": " + log_text(log));
@@ -902,13 +863,26 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
     progress << " (" << plan.event_mismatches << " scenario-track pairs left out: events differ)";
   progress << "\n";
 
-  // run them, at most `jobs` at once
+  // run them, at most `jobs` at once, each a `conesim run` process logging into its folder
   const std::vector<RegressionRun>& runs = plan.runs;
-  std::map<pid_t, size_t> running;
   std::vector<int> exit_codes(runs.size(), -1);
   std::vector<RunRow> rows(runs.size());
-  size_t next = 0, done_count = 0;
-  auto finish = [&](size_t i) {
+  size_t done_count = 0;
+  std::vector<ProcessJob> jobs;
+  for (const RegressionRun& r : runs) {
+    const fs::path dir = o.out_dir / r.dir;
+    std::vector<std::string> argv = {self.string(),          "run",   r.scenario,  "--seed",
+                                     std::to_string(r.seed), "--out", dir.string()};
+    if (!r.track_file.empty()) argv.insert(argv.end(), {"--track", r.track_file.string()});
+    for (const std::string& s : o.sets) argv.insert(argv.end(), {"--set", s});
+    if (!o.plot) argv.push_back("--no-plot");
+    // a scenario given as a file runs from that file
+    for (const std::string& given : o.scenarios)
+      if (fs::path(given).stem() == r.scenario && fs::is_regular_file(given)) argv[2] = given;
+    jobs.push_back({argv, dir / "log.txt"});
+  }
+  auto finish = [&](size_t i, int exit_code) {
+    exit_codes[i] = exit_code;
     const fs::path dir = o.out_dir / runs[i].dir;
     json m;
     std::ifstream in(dir / "metrics.json");
@@ -919,7 +893,7 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
         m = json();
       }
     }
-    const std::string tail = m.is_object() ? "" : last_line(dir / "log.txt");
+    const std::string tail = m.is_object() ? "" : last_log_line(dir / "log.txt");
     rows[i] = make_row(runs[i], m, exit_codes[i], tail);
     ++done_count;
     progress << "[" << done_count << "/" << runs.size() << "] " << runs[i].id() << ": "
@@ -928,38 +902,8 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
                                    : "FAIL")
              << "\n";
   };
-  while (next < runs.size() || !running.empty()) {
-    while (next < runs.size() && static_cast<int>(running.size()) < std::max(o.jobs, 1)) {
-      const RegressionRun& r = runs[next];
-      const fs::path dir = o.out_dir / r.dir;
-      fs::create_directories(dir);
-      std::vector<std::string> argv = {self.string(),          "run",   r.scenario,  "--seed",
-                                       std::to_string(r.seed), "--out", dir.string()};
-      if (!r.track_file.empty()) argv.insert(argv.end(), {"--track", r.track_file.string()});
-      for (const std::string& s : o.sets) argv.insert(argv.end(), {"--set", s});
-      if (!o.plot) argv.push_back("--no-plot");
-      // a scenario given as a file runs from that file
-      for (const std::string& given : o.scenarios)
-        if (fs::path(given).stem() == r.scenario && fs::is_regular_file(given)) argv[2] = given;
-      const pid_t pid = spawn(argv, dir / "log.txt");
-      if (pid > 0) {
-        running[pid] = next;
-      } else {
-        exit_codes[next] = 127;
-        finish(next);
-      }
-      ++next;
-    }
-    if (running.empty()) continue;
-    int status = 0;
-    const pid_t pid = wait(&status);
-    if (pid < 0) break;
-    const auto it = running.find(pid);
-    if (it == running.end()) continue;
-    exit_codes[it->second] = exit_status(status);
-    finish(it->second);
-    running.erase(it);
-  }
+  run_processes(
+      jobs, o.jobs, [&](size_t i) { fs::create_directories(o.out_dir / runs[i].dir); }, finish);
   const double wall_s = std::chrono::duration<double>(clock::now() - start).count();
 
   // the verdicts, the baseline, the three summaries and the table

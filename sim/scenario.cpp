@@ -413,21 +413,37 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
           if (!v.IsScalar() && !v.IsSequence())
             w.fail(v, "shadow", "expected a list of back-ends, e.g. [ekf], got " + describe(v));
           for (const YAML::Node& item : items) {
-            const std::string entry = read_string(item, w, "shadow");
-            // NAME or NAME:METHOD (the back-end with that association)
-            const size_t colon = entry.find(':');
+            const std::string given = read_string(item, w, "shadow");
+            // NAME, NAME:METHOD (the back-end with that association), then +ABLATION each
             SlamShadow shadow;
+            std::string entry = given;
+            for (size_t plus = entry.rfind('+'); plus != std::string::npos;
+                 plus = entry.rfind('+')) {
+              shadow.ablations.insert(shadow.ablations.begin(), entry.substr(plus + 1));
+              entry.resize(plus);
+            }
+            const size_t colon = entry.find(':');
             shadow.backend = entry.substr(0, colon);
             if (!slam::is_backend(shadow.backend))
               w.fail(item, "shadow",
                      "expected back-ends (" + slam::backend_list() +
-                         ", each optionally :METHOD), got '" + entry + "'");
+                         ", each optionally :METHOD and +ABLATION), got '" + given + "'");
+            for (const std::string& a : shadow.ablations) {
+              const auto& known = slam_ablations(shadow.backend);
+              if (std::find(known.begin(), known.end(), a) != known.end()) continue;
+              std::string list;
+              for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+              w.fail(item, "shadow",
+                     "unknown ablation '" + a + "' in '" + given + "': " + shadow.backend +
+                         (known.empty() ? " has none" : " has " + list) +
+                         " (graph: global_only, no_landmark_edges, no_icr; ekf: no_preliminary)");
+            }
             if (colon != std::string::npos) {
               const auto m = slam::association_from_string(entry.substr(colon + 1));
               if (!m)
                 w.fail(item, "shadow",
                        "expected NAME:METHOD with a method of " + slam::association_names() +
-                           ", got '" + entry + "'");
+                           ", got '" + given + "'");
               shadow.association = *m;
             }
             s.slam_shadows.push_back(shadow);
@@ -455,8 +471,12 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
                        {integer("confirm_sightings", ekf.confirm_sightings, e),
                         number("preliminary_max_travel_m", ekf.preliminary_max_travel_m, e),
                         number("preliminary_radius_m", ekf.preliminary_radius_m, e),
+                        {"preliminary_list",
+                         [&](const YAML::Node& x) {
+                           ekf.preliminary_list = read_bool(x, e, "preliminary_list");
+                         }},
                         number("new_landmark_min_distance_m", ekf.new_landmark_min_distance_m, e),
-               number("new_landmark_chi2", ekf.new_landmark_chi2, e),
+                        number("new_landmark_chi2", ekf.new_landmark_chi2, e),
                         number("unseen_exclusion_m", ekf.unseen_exclusion_m, e),
                         number("loop_min_travel_m", ekf.loop_min_travel_m, e),
                         number("start_radius_m", ekf.start_radius_m, e),
@@ -479,49 +499,80 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
         [&](const YAML::Node& v) {
           auto& f = s.slam_settings.fastslam;
           const Where e{&context, "slam.fastslam"};
+          read_section(v, e,
+                       {integer("particles", f.particles, e),
+                        number("resample_fraction", f.resample_fraction, e),
+                        number("new_landmark_likelihood", f.new_landmark_likelihood, e),
+                        number("unseen_penalty", f.unseen_penalty, e),
+                        number("colour_mismatch_penalty", f.colour_mismatch_penalty, e),
+                        number("new_landmark_min_distance_m", f.new_landmark_min_distance_m, e),
+                        number("new_landmark_chi2", f.new_landmark_chi2, e),
+                        integer("confirm_sightings", f.confirm_sightings, e),
+                        number("tentative_max_travel_m", f.tentative_max_travel_m, e),
+                        integer("class_vote_margin", f.class_vote_margin, e),
+                        number("odometry_noise_scale", f.odometry_noise_scale, e),
+                        number("yaw_noise_per_m", f.yaw_noise_per_m, e),
+                        number("fov_margin_m", f.fov_margin_m, e),
+                        number("loop_closure_factor", f.loop_closure.returned_fraction, e),
+                        number("loop_min_travel_m", f.loop_closure.min_travel_m, e),
+                        number("closure_delay_m", f.loop_closure.closure_delay_m, e),
+                        number("closure_max_spread_m", f.closure_max_spread_m, e),
+                        {"localise_after_loop_closure",
+                         [&](const YAML::Node& x) {
+                           f.localise_after_loop_closure =
+                               read_bool(x, e, "localise_after_loop_closure");
+                         }},
+                        number("gate_chi2", f.association.gate_chi2, e),
+                        number("joint_probability", f.association.joint_probability, e),
+                        number("nn_radius_m", f.association.nn_radius_m, e),
+                        number("track_memory_frames", f.association.track_memory_frames, e)});
+        }},
+       {"odometry",
+        [&](const YAML::Node& v) {
+          auto& o = s.slam_settings.odometry;
+          const Where d{&context, "slam.odometry"};
           read_section(
-              v, e,
-              {integer("particles", f.particles, e),
-               number("resample_fraction", f.resample_fraction, e),
-               number("new_landmark_likelihood", f.new_landmark_likelihood, e),
-               number("unseen_penalty", f.unseen_penalty, e),
-               number("colour_mismatch_penalty", f.colour_mismatch_penalty, e),
-               number("new_landmark_min_distance_m", f.new_landmark_min_distance_m, e),
-               number("new_landmark_chi2", f.new_landmark_chi2, e),
-               integer("confirm_sightings", f.confirm_sightings, e),
-               number("tentative_max_travel_m", f.tentative_max_travel_m, e),
-               integer("class_vote_margin", f.class_vote_margin, e),
-               number("odometry_noise_scale", f.odometry_noise_scale, e),
-               number("yaw_noise_per_m", f.yaw_noise_per_m, e),
-               number("fov_margin_m", f.fov_margin_m, e),
-               number("loop_closure_factor", f.loop_closure.returned_fraction, e),
-               number("loop_min_travel_m", f.loop_closure.min_travel_m, e),
-               number("closure_delay_m", f.loop_closure.closure_delay_m, e),
-               number("closure_max_spread_m", f.closure_max_spread_m, e),
-               {"localise_after_loop_closure",
-                [&](const YAML::Node& x) {
-                  f.localise_after_loop_closure = read_bool(x, e, "localise_after_loop_closure");
-                }},
-               number("gate_chi2", f.association.gate_chi2, e),
-               number("joint_probability", f.association.joint_probability, e),
-               number("nn_radius_m", f.association.nn_radius_m, e),
-               number("track_memory_frames", f.association.track_memory_frames, e)});
+              v, d,
+              {integer("confirm_sightings", o.confirm_sightings, d),
+               number("tentative_max_travel_m", o.tentative_max_travel_m, d),
+               number("reach_m", o.reach_m, d), number("nn_radius_m", o.association.nn_radius_m, d),
+               number("gate_chi2", o.association.gate_chi2, d),
+               number("joint_probability", o.association.joint_probability, d)});
         }},
        {"graph", [&](const YAML::Node& v) {
           const Where g{&context, "slam.graph"};
-          read_section(v, g,
-                       {integer("confirm_sightings", graph.confirm_sightings, g),
-                        integer("window_poses", graph.window_poses, g),
-                        number("icr_sigma_m", graph.icr_sigma_m, g),
-                        number("gate_chi2", graph.association.gate_chi2, g),
-                        number("track_memory_frames", graph.association.track_memory_frames, g),
-                        {"localise_after_loop_closure", [&](const YAML::Node& x) {
-                           graph.localise_after_loop_closure =
-                               read_bool(x, g, "localise_after_loop_closure");
-                         }}});
+          read_section(
+              v, g,
+              {integer("confirm_sightings", graph.confirm_sightings, g),
+               integer("window_poses", graph.window_poses, g),
+               number("icr_sigma_m", graph.icr_sigma_m, g),
+               {"icr",
+                [&](const YAML::Node& x) {
+                  // off: no ICR edge; on: the edge with icr_sigma_m (given or default)
+                  if (!read_bool(x, g, "icr")) graph.icr_sigma_m = 0.0;
+                }},
+               {"global_only",
+                [&](const YAML::Node& x) { graph.global_only = read_bool(x, g, "global_only"); }},
+               {"landmark_edges",
+                [&](const YAML::Node& x) {
+                  graph.landmark_edges = read_bool(x, g, "landmark_edges");
+                }},
+               number("gate_chi2", graph.association.gate_chi2, g),
+               number("track_memory_frames", graph.association.track_memory_frames, g),
+               {"localise_after_loop_closure", [&](const YAML::Node& x) {
+                  graph.localise_after_loop_closure =
+                      read_bool(x, g, "localise_after_loop_closure");
+                }}});
         }}});
 }
 }  // namespace
+
+const std::vector<std::string>& slam_ablations(const std::string& backend) {
+  static const std::vector<std::string> graph = {"global_only", "no_landmark_edges", "no_icr"};
+  static const std::vector<std::string> ekf = {"no_preliminary"};
+  static const std::vector<std::string> none;
+  return backend == "graph" ? graph : backend == "ekf" ? ekf : none;
+}
 
 fs::path shipped_scenarios_dir() {
   if (const char* env = std::getenv("CONESIM_SCENARIOS")) return env;
@@ -541,9 +592,9 @@ fs::path find_scenario(const std::string& name_or_path) {
     std::sort(names.begin(), names.end());
     for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
   }
-  throw InputError(name_or_path, 0,
-                   "no such scenario file, and no shipped scenario of that name (shipped: " +
-                       known + ")");
+  throw InputError(
+      name_or_path, 0,
+      "no such scenario file, and no shipped scenario of that name (shipped: " + known + ")");
 }
 
 namespace {
@@ -874,6 +925,21 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                          ss.cone_sensor_track = read_bool(x, c, "track");
                        }}});
                }},
+              {"imu",
+               [&](const YAML::Node& v) {
+                 const Where c{&context, "sensors.imu"};
+                 auto& imu = ss.imu;
+                 read_section(
+                     v, c,
+                     {number("gyro_noise_density_rps_rthz", imu.gyro_noise_density_rps_rthz, c),
+                      number("gyro_bias_walk_rps_rts", imu.gyro_bias_walk_rps_rts, c),
+                      number("gyro_initial_bias_rps", imu.gyro_initial_bias_rps, c)});
+               }},
+              {"wheel_encoders",
+               [&](const YAML::Node& v) {
+                 const Where c{&context, "sensors.wheel_encoders"};
+                 read_section(v, c, {number("noise_rps", ss.wheel_encoders.noise_rps, c)});
+               }},
               {"lidar",
                [&](const YAML::Node& v) {
                  const Where c{&context, "sensors.lidar"};
@@ -946,8 +1012,10 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
 
   // a generated circuit without its own seed follows the scenario seed
   if (generate_seed) {
-    if (*generate_seed != std::numeric_limits<uint64_t>::max()) s.track.generate_seed = generate_seed;
-    else s.track.generate_seed = s.seed;
+    if (*generate_seed != std::numeric_limits<uint64_t>::max())
+      s.track.generate_seed = generate_seed;
+    else
+      s.track.generate_seed = s.seed;
   }
 
   // check the values as a whole
@@ -963,6 +1031,9 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   if (!(s.sensors.cone_fov_deg > 0.0 && s.sensors.cone_fov_deg <= 360.0))
     context.fail("sensors.cone_fov_deg", "expected a field of view in (0, 360] degrees");
   if (const std::string e = s.sensors.cone_sensor.validate(); !e.empty())
+    context.fail_check("sensors", e);
+  if (const std::string e = s.sensors.imu.validate(); !e.empty()) context.fail_check("sensors", e);
+  if (const std::string e = s.sensors.wheel_encoders.validate(); !e.empty())
     context.fail_check("sensors", e);
   if (const std::string e = s.sensors.camera.validate(); !e.empty())
     context.fail_check("sensors.camera", e);
@@ -1018,6 +1089,38 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                  "ideal reads the ground-truth labels: it is for shadow back-ends only (e.g. "
                  "shadow: [" +
                      s.slam + ":ideal]), never for the one that drives");
+  // the association each lane runs: no association only in shadow and only where the map can
+  // hold every observation; tracking-aided needs a back-end with track memory
+  {
+    auto method_of = [&](const std::string& backend, std::optional<slam::AssociationMethod> own) {
+      if (own) return own;
+      const auto it = s.slam_association.find(backend);
+      return it == s.slam_association.end() ? std::optional<slam::AssociationMethod>{}
+                                            : std::optional{it->second};
+    };
+    using M = slam::AssociationMethod;
+    if (s.slam != "none" && method_of(s.slam, std::nullopt) == M::kNone)
+      context.fail("slam.association",
+                   "none (every observation a new landmark) is for shadow back-ends only (e.g. "
+                   "shadow: [graph:none]), never for the one that drives");
+    std::vector<SlamShadow> lanes = s.slam_shadows;
+    if (s.slam != "none") lanes.push_back({s.slam, std::nullopt, {}});
+    for (const SlamShadow& lane : lanes) {
+      const auto m = method_of(lane.backend, lane.association);
+      const std::string key = lane.association ? "slam.shadow" : "slam.association";
+      if (m == M::kNone && lane.backend != "graph" && lane.backend != "odometry")
+        context.fail(key,
+                     "none (every observation a new landmark) runs on graph or odometry, "
+                     "whose maps can hold thousands of landmarks; " +
+                         lane.backend + " keeps them in a joint state or in every particle");
+      if (m == M::kTrackingAided && lane.backend == "odometry")
+        context.fail(key,
+                     "odometry (dead reckoning) has no track memory: expected nn, ml, scnn, "
+                     "jcbb, ideal or none");
+    }
+  }
+  if (std::string e = s.slam_settings.odometry.validate(); !e.empty())
+    context.fail_check("slam.odometry", e);
   // (the association's parameters sit beside the others under slam.ekf)
   if (std::string e = s.slam_settings.ekf.validate(); !e.empty())
     context.fail_check("slam.ekf", e.starts_with("association.") ? e.substr(12) : e);

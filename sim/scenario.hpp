@@ -13,6 +13,7 @@
 #include "core/event.hpp"
 #include "sensors/cone_sensor.hpp"
 #include "sensors/stereo_camera.hpp"
+#include "sensors/vehicle_sensors.hpp"
 #include "sim/autonomy.hpp"
 #include "sim/referee.hpp"
 #include "slam/factory.hpp"
@@ -59,6 +60,10 @@ struct SensorSettings {
   /// Time from an exposure until its cones reach SLAM (`perception: stereo`), seconds.
   double camera_latency_s = 0.05;
   sensors::StereoCameraConfig camera;
+  /// The IMU and wheel encoders that feed SLAM's odometry (`sensors.imu`,
+  /// `sensors.wheel_encoders`: their noise).
+  sensors::ImuConfig imu;
+  sensors::WheelEncoderConfig wheel_encoders;
 };
 
 /// What a run must achieve to pass.
@@ -80,15 +85,26 @@ struct PassCriteria {
   std::optional<double> max_map_missed_fraction;
 };
 
-/// A shadow back-end: its name and, when given (`ekf:jcbb`), its association method.
+/// A shadow back-end: its name, when given (`ekf:jcbb`) its association method, and the
+/// ablations it runs with (`graph:ideal+global_only+no_icr`, see slam_ablations()).
 struct SlamShadow {
   std::string backend;
   std::optional<slam::AssociationMethod> association;
-  /// The lane's name in outputs: the back-end's, with "-METHOD" when a method is given.
+  std::vector<std::string> ablations;
+  /// The lane's name in outputs: the back-end's, with "-METHOD" when a method is given and
+  /// "+ABLATION" for each ablation.
   std::string lane_name() const {
-    return association ? backend + "-" + std::string(slam::to_string(*association)) : backend;
+    std::string name =
+        association ? backend + "-" + std::string(slam::to_string(*association)) : backend;
+    for (const std::string& a : ablations) name += "+" + a;
+    return name;
   }
 };
+
+/// The ablations a back-end can run with as a shadow (`NAME+ABLATION`): graph's
+/// global_only, no_landmark_edges and no_icr (RaceUp), ekf's no_preliminary (Monash); none for
+/// the others.
+const std::vector<std::string>& slam_ablations(const std::string& backend);
 
 /// The back-ends' parameters as conesim runs them: GraphSLAM's no-lateral-motion constraint
 /// allows the MuJoCo car's rear-axle slip (slip angles up to about 1 degree).
@@ -117,7 +133,7 @@ struct Scenario {
   /// The association method per back-end name (`slam.association`); a back-end not named
   /// keeps its own default.
   std::map<std::string, slam::AssociationMethod> slam_association;
-  /// Every back-end's parameters (`slam.graph`, `slam.ekf`).
+  /// Every back-end's parameters (`slam.graph`, `slam.ekf`, `slam.fastslam`, `slam.odometry`).
   slam::BackendSettings slam_settings = default_slam_settings();
   /// How long a SLAM update takes on the sim clock, seconds: its estimate reaches the driver at
   /// the first driver tick this long after the frame's delivery, and meanwhile the driver has
@@ -148,8 +164,8 @@ struct Scenario {
 std::filesystem::path find_scenario(const std::string& name_or_path);
 
 /// Reads a scenario file, applying `seed` (as --seed gives it) and then `overrides`
-/// ("key.path=value", as --set gives them) before the values are checked. Every value is checked here,
-/// before anything runs or is written. Throws core::InputError naming the file, line and key,
+/// ("key.path=value", as --set gives them) before the values are checked. Every value is checked
+/// here, before anything runs or is written. Throws core::InputError naming the file, line and key,
 /// or the option ("--set: key: ...", "--seed: ...") for a value from the command line. A key
 /// given twice is a warning in Scenario::warnings, and the last one counts.
 Scenario load_scenario(const std::filesystem::path& file,

@@ -23,8 +23,16 @@ constexpr TimeUs kInViewEveryUs = 50'000;
 // a back-end's settings as the scenario and its perception make them
 slam::BackendSettings lane_settings(const Scenario& s, const std::string& lane,
                                     const std::string& backend,
-                                    std::optional<slam::AssociationMethod> method) {
+                                    std::optional<slam::AssociationMethod> method,
+                                    const std::vector<std::string>& ablations) {
   slam::BackendSettings settings = s.slam_settings;
+  // the lane's own ablations (`graph+no_icr`), over the scenario's keys
+  for (const std::string& a : ablations) {
+    if (a == "global_only") settings.graph.global_only = true;
+    if (a == "no_landmark_edges") settings.graph.landmark_edges = false;
+    if (a == "no_icr") settings.graph.icr_sigma_m = 0.0;
+    if (a == "no_preliminary") settings.ekf.preliminary_list = false;
+  }
   // where the perception sees cones: a landmark there that goes unseen counts against it
   const PerceptionView view = perception_view(s);
   settings.graph.sensor_x_m = view.sensor_x_m;
@@ -47,6 +55,9 @@ slam::BackendSettings lane_settings(const Scenario& s, const std::string& lane,
   if (method) {
     settings.ekf.association.method = *method;
     settings.fastslam.association.method = *method;
+    settings.odometry.association.method = *method;
+    // without association a landmark is one observation: confirmed at once
+    if (*method == slam::AssociationMethod::kNone) settings.graph.confirm_sightings = 1;
     // GraphSLAM's built-in association is ML with individual compatibility and the drift
     // consensus on returning, tracking-aided by default; the other methods replace it
     using M = slam::AssociationMethod;
@@ -61,6 +72,19 @@ slam::BackendSettings lane_settings(const Scenario& s, const std::string& lane,
   return settings;
 }
 
+// the ablations a lane's settings hold, by the names the shadow syntax uses
+std::vector<std::string> lane_ablations(const std::string& backend,
+                                        const slam::BackendSettings& settings) {
+  std::vector<std::string> out;
+  if (backend == "graph") {
+    if (settings.graph.global_only) out.push_back("global_only");
+    if (!settings.graph.landmark_edges) out.push_back("no_landmark_edges");
+    if (settings.graph.icr_sigma_m == 0.0) out.push_back("no_icr");
+  }
+  if (backend == "ekf" && !settings.ekf.preliminary_list) out.push_back("no_preliminary");
+  return out;
+}
+
 slam::OdometryConfig odometry_config(const Scenario& s) {
   slam::OdometryConfig c;
   c.wheel_radius_m = s.vehicle.wheel_radius_m;
@@ -68,6 +92,10 @@ slam::OdometryConfig odometry_config(const Scenario& s) {
   // the gyro's yaw rate: on the MuJoCo car the anti-Ackermann front tyres fight, and the
   // bicycle model overstates the yaw rate by up to 18 % at large angles (docs/vehicle.md)
   c.model = slam::MotionModel::kUnicycle;
+  // the heading random walk it allows: four times the gyro's white noise (the default's margin
+  // over the MEMS IMU), at least the default
+  c.gyro_sigma_rad_per_sqrt_s =
+      std::max(c.gyro_sigma_rad_per_sqrt_s, 4.0 * s.sensors.imu.gyro_noise_density_rps_rthz);
   return c;
 }
 
@@ -134,6 +162,8 @@ struct SlamRunner::Lane {
   // the association method's name, and whether it reads the labels (ideal)
   std::string association;
   bool ideal = false;
+  // the ablations it runs with (metrics.json `ablations`)
+  std::vector<std::string> ablations;
   std::unique_ptr<slam::Backend> backend;
   SlamScorer scorer;
   std::deque<Pending> pending;
@@ -146,7 +176,9 @@ struct SlamRunner::Lane {
 };
 
 SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const VehicleSim& car)
-    : track_(track), feed_(s.seed), odometry_(odometry_config(s)) {
+    : track_(track),
+      feed_(s.seed, s.sensors.imu, s.sensors.wheel_encoders),
+      odometry_(odometry_config(s)) {
   if (s.slam == "none") throw std::invalid_argument("slam: no driving back-end");
   start_pose_ = car.truth().pose;
   latency_us_ = core::from_seconds(s.slam_latency_s);
@@ -156,15 +188,18 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
   struct Spec {
     std::string lane, backend;
     std::optional<slam::AssociationMethod> method;
+    std::vector<std::string> ablations;
   };
-  std::vector<Spec> specs = {{s.slam, s.slam, std::nullopt}};
+  std::vector<Spec> specs = {{s.slam, s.slam, std::nullopt, {}}};
   for (const SlamShadow& shadow : s.slam_shadows)
-    specs.push_back({shadow.lane_name(), shadow.backend, shadow.association});
+    specs.push_back({shadow.lane_name(), shadow.backend, shadow.association, shadow.ablations});
   for (size_t k = 0; k < specs.size(); ++k) {
     // a lane name given twice runs once
     if (std::any_of(lanes_.begin(), lanes_.end(),
                     [&](const auto& l) { return l->name == specs[k].lane; }))
       continue;
+    const slam::BackendSettings settings =
+        lane_settings(s, specs[k].lane, specs[k].backend, specs[k].method, specs[k].ablations);
     // the driving lane from a plug-in (autonomy.slam), or a built-in back-end
     std::unique_ptr<slam::Backend> backend;
     if (k == 0 && s.slam_plugin) {
@@ -173,18 +208,20 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
       backend = std::make_unique<PluginBackend>(*s.slam_plugin,
                                                 make_plugin_slam(*s.slam_plugin, run->info));
     } else {
-      backend = slam::make_backend(
-          specs[k].backend, lane_settings(s, specs[k].lane, specs[k].backend, specs[k].method));
+      backend = slam::make_backend(specs[k].backend, settings);
     }
     auto lane = std::make_unique<Lane>(specs[k].lane, k == 0, std::move(backend), track, view);
+    lane->ablations = lane_ablations(specs[k].backend, settings);
     // the association it runs: its own, the scenario's for the back-end, or the default
     std::optional<slam::AssociationMethod> method = specs[k].method;
     if (!method)
       if (const auto it = s.slam_association.find(specs[k].backend); it != s.slam_association.end())
         method = it->second;
-    lane->association = method                        ? std::string(slam::to_string(*method))
-                        : specs[k].backend == "graph" ? "tracking"
-                                                      : "ml";
+    lane->association = method                           ? std::string(slam::to_string(*method))
+                        : specs[k].backend == "graph"    ? "tracking"
+                        : specs[k].backend == "odometry" ? "nn"
+                                                         : "ml";
+    if (method == slam::AssociationMethod::kNone) lane->ablations.push_back("no_association");
     lane->ideal = method == slam::AssociationMethod::kIdeal;
     lane->backend->reset(start_pose_, 0);
     if (s.event == core::EventType::kSkidpad) {
@@ -233,8 +270,8 @@ slam::SlamInput SlamRunner::next_input(const DeliveredDetections& frame) {
   return input;
 }
 
-void SlamRunner::post(const DeliveredDetections& frame, const slam::SlamInput& input,
-                      TimeUs tick, bool ahead) {
+void SlamRunner::post(const DeliveredDetections& frame, const slam::SlamInput& input, TimeUs tick,
+                      bool ahead) {
   for (auto& lane_ptr : lanes_) {
     Lane& lane = *lane_ptr;
     // the labels go only to a lane with the ideal association (an ablation)
@@ -277,15 +314,14 @@ void SlamRunner::catch_up(TimeUs t) {
       Lane::Pending& update = lane.pending.front();
       // the driving lane waits for its latency; a shadow's finished updates are scored as
       // they come (in order, so the figures do not depend on when)
-      const bool ready = lane.driving ? update.due_us <= t
-                                      : update.tick_us <= t &&
-                                            update.result.wait_for(std::chrono::seconds(0)) ==
-                                                std::future_status::ready;
+      const bool ready =
+          lane.driving ? update.due_us <= t
+                       : update.tick_us <= t && update.result.wait_for(std::chrono::seconds(0)) ==
+                                                    std::future_status::ready;
       if (!ready) break;
       // a due update the lane's thread has not started (a busy machine keeps it waiting) runs
       // here; only the last one pending, so that no later update can run beside it
-      const bool here =
-          lane.driving && lane.pending.size() == 1 && !update.claimed->exchange(true);
+      const bool here = lane.driving && lane.pending.size() == 1 && !update.claimed->exchange(true);
       take_in(lane, std::move(update.frame), here ? lane.run(update.input) : update.result.get());
       lane.pending.pop_front();
     }
@@ -316,8 +352,8 @@ void SlamRunner::take_in(Lane& lane, DeliveredDetections frame, UpdateResult upd
     last_frame_pose_ = last_estimate_.pose;
   }
   // the scoring on the lane's thread: nothing in the loop reads it
-  lane.scoring.push_back(lane.thread->post(
-      [&lane, frame = std::move(frame), update = std::move(update)] {
+  lane.scoring.push_back(
+      lane.thread->post([&lane, frame = std::move(frame), update = std::move(update)] {
         SlamScorer::Update u;
         u.stamp = frame.observations.stamp;
         u.true_pose = frame.capture_pose;
@@ -390,6 +426,7 @@ nlohmann::json SlamRunner::all_metrics() const {
     m["association"] = lane->association;
     // an ablation that read the labels: never a figure a car could reach
     m["ideal_association"] = lane->ideal;
+    m["ablations"] = lane->ablations;
     // which estimate is reported: a particle filter's best particle, say
     m["estimate_source"] = lane->backend->estimate_source();
     if (const auto stats = lane->backend->statistics(); !stats.empty()) {

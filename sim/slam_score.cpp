@@ -302,6 +302,17 @@ nlohmann::json SlamScorer::metrics(const core::Estimate& e) const {
       {"update_cpu_ms_median", nearest_rank_percentile(update_cpu_ms_, 0.5)},
       {"update_cpu_ms_p99", nearest_rank_percentile(update_cpu_ms_, 0.99)},
   };
+  // the map error every 10 m driven, all classes and per class (FST Figs 4.6-4.8)
+  nlohmann::json over_distance = nlohmann::json::array();
+  for (const MapErrorSnapshot& row : map_error_over_distance_) {
+    nlohmann::json r = {{"distance_m", row.distance_m},
+                        {"matched", row.matched},
+                        {"rmse_m", number_or_null(row.rmse_m[0])}};
+    for (size_t k = 0; k < kScoredClasses.size(); ++k)
+      r[std::string(core::to_string(kScoredClasses[k])) + "_m"] = number_or_null(row.rmse_m[k + 1]);
+    over_distance.push_back(r);
+  }
+  m["map_error_over_distance"] = over_distance;
   if (!association_us_.empty()) {
     m["association_us_median"] = nearest_rank_percentile(association_us_, 0.5);
     m["association_us_p99"] = nearest_rank_percentile(association_us_, 0.99);

@@ -11,9 +11,10 @@ constexpr uint64_t kWheelStream = 202;
 constexpr uint64_t kSteeringStream = 203;
 }  // namespace
 
-VehicleSensorFeed::VehicleSensorFeed(uint64_t seed)
-    : imu_(sensors::ImuConfig{}, core::derive_seed(seed, kImuStream)),
-      wheels_(sensors::WheelEncoderConfig{}, core::derive_seed(seed, kWheelStream)),
+VehicleSensorFeed::VehicleSensorFeed(uint64_t seed, const sensors::ImuConfig& imu,
+                                     const sensors::WheelEncoderConfig& wheels)
+    : imu_(imu, core::derive_seed(seed, kImuStream)),
+      wheels_(wheels, core::derive_seed(seed, kWheelStream)),
       steering_(sensors::SteeringSensorConfig{}, core::derive_seed(seed, kSteeringStream)) {}
 
 bool VehicleSensorFeed::imu_due(core::TimeUs t) const {

@@ -15,8 +15,10 @@ namespace conesim::sim {
 
 class VehicleSensorFeed {
  public:
-  /// The sensors with noise streams derived from the scenario seed.
-  explicit VehicleSensorFeed(uint64_t seed);
+  /// The sensors with noise streams derived from the scenario seed, the IMU and the wheel
+  /// encoders with the given noise.
+  explicit VehicleSensorFeed(uint64_t seed, const sensors::ImuConfig& imu = {},
+                             const sensors::WheelEncoderConfig& wheels = {});
 
   /// Samples the sensors due at t and delivers what has arrived by t.
   void step(core::TimeUs t, const VehicleSim& car);

@@ -6,7 +6,8 @@
 namespace conesim::slam {
 
 const std::vector<std::string>& backend_names() {
-  static const std::vector<std::string> names = {"graph", "ekf", "fastslam1", "fastslam2"};
+  static const std::vector<std::string> names = {"graph", "ekf", "fastslam1", "fastslam2",
+                                                 "odometry"};
   return names;
 }
 
@@ -24,6 +25,7 @@ bool is_backend(const std::string& name) {
 std::unique_ptr<Backend> make_backend(const std::string& name, const BackendSettings& settings) {
   if (name == "graph") return std::make_unique<GraphSlam>(settings.graph);
   if (name == "ekf") return std::make_unique<EkfSlam>(settings.ekf);
+  if (name == "odometry") return std::make_unique<DeadReckoning>(settings.odometry);
   if (name == "fastslam1" || name == "fastslam2") {
     FastSlamConfig config = settings.fastslam;
     config.version = name == "fastslam1" ? 1 : 2;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "slam/backend.hpp"
+#include "slam/backends/dead_reckoning.hpp"
 #include "slam/backends/ekf_slam.hpp"
 #include "slam/backends/fastslam.hpp"
 #include "slam/backends/graph_slam.hpp"
@@ -19,12 +20,15 @@ struct BackendSettings {
   EkfSlamConfig ekf;
   /// FastSLAM 1.0 and 2.0 share their parameters (`slam.fastslam`); the name sets the version.
   FastSlamConfig fastslam;
+  /// The dead-reckoning baseline (`slam.odometry`).
+  DeadReckoningConfig odometry;
 };
 
-/// The back-ends' names: graph, ekf, fastslam1, fastslam2.
+/// The back-ends' names: graph, ekf, fastslam1, fastslam2, odometry (the dead-reckoning
+/// baseline).
 const std::vector<std::string>& backend_names();
 
-/// "graph, ekf, fastslam1, fastslam2" for error messages.
+/// "graph, ekf, fastslam1, fastslam2, odometry" for error messages.
 std::string backend_list();
 
 /// True for a known back-end name.

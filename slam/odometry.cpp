@@ -192,4 +192,16 @@ OdometryDelta Odometry::take_delta(core::TimeUs stamp) {
   return out;
 }
 
+Eigen::Matrix3d compose_covariance(const core::Pose2& from, const OdometryDelta& odometry,
+                                   const Eigen::Matrix3d& covariance) {
+  const double c = std::cos(from.yaw), s = std::sin(from.yaw);
+  const core::Pose2& d = odometry.delta;
+  Eigen::Matrix3d f_pose;
+  f_pose << 1, 0, -s * d.x - c * d.y, 0, 1, c * d.x - s * d.y, 0, 0, 1;
+  Eigen::Matrix3d f_delta = Eigen::Matrix3d::Identity();
+  f_delta.topLeftCorner<2, 2>() << c, -s, s, c;
+  return f_pose * covariance * f_pose.transpose() +
+         f_delta * odometry.covariance * f_delta.transpose();
+}
+
 }  // namespace conesim::slam

@@ -123,4 +123,9 @@ class Odometry {
   double distance_m_ = 0.0;
 };
 
+/// The covariance of `from` composed with the odometry's delta: `covariance` of `from` carried
+/// through the composition plus the delta's own, rotated into the map frame.
+Eigen::Matrix3d compose_covariance(const core::Pose2& from, const OdometryDelta& odometry,
+                                   const Eigen::Matrix3d& covariance);
+
 }  // namespace conesim::slam

@@ -30,11 +30,13 @@ namespace {
 
 using core::InputError;
 
-/// Two cones of one class closer than this are one cone listed twice.
 // a start pose guessed from the first gate is moved this far behind it (the front wing starts
 // behind the time-keeping line), metres
 constexpr double kStartBehindGateM = 6.0;
-constexpr double kDuplicateRadiusM = 0.01;
+// two cones of one class whose bases would overlap by more than this (centres closer than the
+// base width less it) cannot both stand there: one cone listed twice (PacSim's FSCZ24 lists
+// seven cones twice, 0.10-0.14 m apart), metres
+constexpr double kOverlapToleranceM = 0.02;
 /// Largest coordinate accepted, metres: room for UTM northings, and distances stay finite.
 constexpr double kMaxCoordinateM = 1e7;
 /// No centre line is derived along lanes longer than this (real courses are under 2 km).
@@ -202,14 +204,22 @@ class ConeSink {
     if (track_.cones.size() >= kMaxTrackCones)
       throw InputError(file_, line, "more than " + std::to_string(kMaxTrackCones) + " cones");
 
-    // the same cone listed twice: keep the first
-    for (const Cone& c : track_.cones)
-      if (c.cls == cls && (c.position - p).norm() <= kDuplicateRadiusM) {
-        track_.warnings.push_back(file_ + ":" + std::to_string(line) + ": repeats the " +
-                                  std::string(core::to_string(cls)) + " cone at " +
-                                  format_point(c.position) + "; copy dropped");
-        return false;
+    // the same cone listed twice (exactly, or where the two would overlap): keep the first
+    const double overlap_m = core::cone_size(cls).base_m - kOverlapToleranceM;
+    for (const Cone& c : track_.cones) {
+      if (c.cls != cls) continue;
+      const double apart = (c.position - p).norm();
+      if (apart > overlap_m) continue;
+      std::string what = file_ + ":" + std::to_string(line) + ": repeats the " +
+                         std::string(core::to_string(cls)) + " cone at " + format_point(c.position);
+      if (apart > 0.01) {
+        char buf[64];
+        std::snprintf(buf, sizeof buf, " (%.2f m apart: their bases would overlap)", apart);
+        what += buf;
       }
+      track_.warnings.push_back(what + "; copy dropped");
+      return false;
+    }
     track_.cones.push_back({-1, cls, p, covariance});
     return true;
   }

@@ -1,16 +1,16 @@
 // The conesim command: the only translation unit that includes CLI11 (it costs seconds per file).
 
-#include <CLI/CLI.hpp>
-#include <exception>
-#include <iostream>
-
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <cstdio>
+#include <exception>
+#include <iostream>
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
 #include "sim/bench.hpp"
+#include "sim/compare.hpp"
 #include "sim/regress.hpp"
 #include "sim/run.hpp"
 #include "sim/scenario.hpp"
@@ -79,8 +79,9 @@ void add_track_commands(CLI::App& app, int& status) {
   // validate
   {
     auto* cmd = track->add_subcommand(
-        "validate", "Read track files and check them against the FSG rules. Exit 0 when every "
-                    "file reads, 2 when one is malformed, 1 on rule violations with --strict");
+        "validate",
+        "Read track files and check them against the FSG rules. Exit 0 when every "
+        "file reads, 2 when one is malformed, 1 on rule violations with --strict");
     auto files = std::make_shared<std::vector<fs::path>>();
     auto event = std::make_shared<std::string>();
     auto strict = std::make_shared<bool>(false);
@@ -89,14 +90,15 @@ void add_track_commands(CLI::App& app, int& status) {
     add_event_option(cmd, *event, "Check the rules of this event (default: recognised per file)");
     cmd->add_flag("--strict", *strict, "Exit 1 when a rule is broken");
     cmd->callback([=, &status] {
-      status = conesim::sim::track_validate(*files, parse_event(*event), *strict, std::cout,
-                                            std::cerr);
+      status =
+          conesim::sim::track_validate(*files, parse_event(*event), *strict, std::cout, std::cerr);
     });
   }
 
   // info
   {
-    auto* cmd = track->add_subcommand("info", "Print a track's figures and rule violations as JSON");
+    auto* cmd =
+        track->add_subcommand("info", "Print a track's figures and rule violations as JSON");
     auto file = std::make_shared<fs::path>();
     auto event = std::make_shared<std::string>();
     cmd->add_option("FILE", *file, "Track file")->required();
@@ -110,7 +112,8 @@ void add_track_commands(CLI::App& app, int& status) {
   // generate
   {
     auto* cmd = track->add_subcommand(
-        "generate", "Make an FSG layout: skidpad, acceleration, or a random rule-compliant circuit");
+        "generate",
+        "Make an FSG layout: skidpad, acceleration, or a random rule-compliant circuit");
     auto event = std::make_shared<std::string>("trackdrive");
     auto seed = std::make_shared<uint64_t>(0);
     auto out = std::make_shared<fs::path>();
@@ -317,8 +320,8 @@ void add_run_command(CLI::App& app, int& status) {
     if (tty) {
       options.on_progress = [&s](const sim::Progress& p) {
         std::fprintf(stderr, "\r%s  lap %d/%d  t %.1f s  %.0fx real time  %s\033[K",
-                     std::string(conesim::core::to_string(s.event)).c_str(), p.laps,
-                     p.laps_target, p.sim_time_s, p.real_time_factor, p.driver_state.c_str());
+                     std::string(conesim::core::to_string(s.event)).c_str(), p.laps, p.laps_target,
+                     p.sim_time_s, p.real_time_factor, p.driver_state.c_str());
       };
     }
     const sim::RunResult r = sim::run_scenario(s, t, options);
@@ -406,6 +409,55 @@ void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
   });
 }
 
+// `conesim compare STUDY ...`
+void add_compare_command(CLI::App& app, int& status, int argc, char** argv) {
+  auto* cmd = app.add_subcommand(
+      "compare",
+      "Run a study of the SLAM theses (fst, raceup, monash, all): every method on the same "
+      "observations, tracks x seeds x conditions in parallel processes; write compare.md, "
+      "compare.json and compare.html beside the runs. Exit 0 when every run gave its figures, 1 "
+      "when one did not (named), 2 for bad input");
+  auto o = std::make_shared<conesim::sim::CompareOptions>();
+  auto seeds = std::make_shared<std::string>();
+  auto no_plot = std::make_shared<bool>(false);
+  auto list = std::make_shared<bool>(false);
+  o->jobs = std::min(2, std::max(1, static_cast<int>(sysconf(_SC_NPROCESSORS_ONLN))));
+  cmd->add_option("STUDY", o->study, "fst, raceup, monash or all")->required();
+  cmd->add_option("--jobs,-j", o->jobs, "Runs at once (default: 2, or 1 on one core)")
+      ->check(CLI::Range(1, 256));
+  cmd->add_option("--out", o->out_dir,
+                  "Folder of the runs (default runs/compare-STUDY-<UTC stamp>)");
+  cmd->add_option("--track", o->track_files,
+                  "Run on this track instead of the study's (repeatable; a quick look)");
+  cmd->add_option("--seeds", *seeds, "Seeds instead of the study's: 1,2,3 or 1-5");
+  cmd->add_option("--set", o->sets,
+                  "Override a scenario value in every run, after the study's own: key.path=value");
+  cmd->add_flag("--no-plot", *no_plot, "Draw no figures");
+  cmd->add_flag("--reuse", o->reuse,
+                "With --out of an earlier call: runs that wrote their metrics.json are read, not "
+                "run again (the outputs are written anew)");
+  cmd->add_flag("--list", *list, "Print the runs (id and folder) and stop: nothing runs");
+  cmd->callback([=, &status] {
+    namespace sim = conesim::sim;
+    if (!seeds->empty()) o->seeds = sim::parse_seeds(*seeds);
+    o->plot = !*no_plot;
+    for (int i = 0; i < argc; ++i) o->command_line += (i ? " " : "") + std::string(argv[i]);
+    std::error_code ec;
+    fs::path self = fs::read_symlink("/proc/self/exe", ec);
+    if (ec) self = fs::absolute(argv[0]);
+    if (*list) {
+      const sim::StudyPlan plan = sim::plan_study(*o);
+      for (const auto& r : plan.runs) std::cout << r.id() << "  " << r.dir.string() << "\n";
+      std::cout << plan.runs.size() << " runs\n";
+      return;
+    }
+    // bad input stops before a folder is made
+    sim::plan_study(*o);
+    if (o->out_dir.empty()) o->out_dir = sim::make_run_dir("runs", "compare-" + o->study);
+    status = sim::run_compare(self, *o, std::cout, std::cerr);
+  });
+}
+
 // `conesim vehicle inspect FILE --steer RAD`
 void add_vehicle_commands(CLI::App& app) {
   auto* vehicle = app.add_subcommand("vehicle", "Vehicle parameter sets");
@@ -431,8 +483,8 @@ void add_vehicle_commands(CLI::App& app) {
                         {"ackermann_factor", p.ackermann_factor},
                         {"left_wheel_rad", w.left_rad},
                         {"right_wheel_rad", w.right_rad},
-                        {"turn_radius_m", std::isfinite(radius) ? nlohmann::json(radius)
-                                                                : nlohmann::json(nullptr)}};
+                        {"turn_radius_m",
+                         std::isfinite(radius) ? nlohmann::json(radius) : nlohmann::json(nullptr)}};
     std::cout << j.dump(2) << "\n";
   });
 }
@@ -445,9 +497,11 @@ void add_bench_commands(CLI::App& app) {
       "sensors", "LiDAR Mrays/s and ms per scan, ms per stereo pair, closed-loop real-time factor");
   auto repeats = std::make_shared<int>(5);
   auto no_loop = std::make_shared<bool>(false);
-  cmd->add_option("--repeats", *repeats, "Repetitions (scaled per figure)")->check(CLI::Range(1, 1000));
+  cmd->add_option("--repeats", *repeats, "Repetitions (scaled per figure)")
+      ->check(CLI::Range(1, 1000));
   cmd->add_flag("--no-closed-loop", *no_loop, "Skip the two trackdrive runs");
-  cmd->callback([=] { std::cout << conesim::sim::bench_sensors(*repeats, !*no_loop).dump(2) << "\n"; });
+  cmd->callback(
+      [=] { std::cout << conesim::sim::bench_sensors(*repeats, !*no_loop).dump(2) << "\n"; });
 }
 
 }  // namespace
@@ -460,6 +514,7 @@ int main(int argc, char** argv) {
   add_track_commands(app, status);
   add_run_command(app, status);
   add_regress_command(app, status, argc, argv);
+  add_compare_command(app, status, argc, argv);
   add_vehicle_commands(app);
   add_bench_commands(app);
 

@@ -21,6 +21,7 @@ constexpr Named kNames[] = {
     {AssociationMethod::kJcbb, "jcbb"},
     {AssociationMethod::kTrackingAided, "tracking"},
     {AssociationMethod::kIdeal, "ideal"},
+    {AssociationMethod::kNone, "none"},
 };
 
 // a pairing that passed the individual gate
@@ -203,6 +204,9 @@ std::vector<int> associate(const AssociationParams& params, const AssociationPro
   };
 
   switch (params.method) {
+    case AssociationMethod::kNone:
+      // every observation unpaired: each starts a landmark
+      return pairing_of;
     case AssociationMethod::kNearestNeighbour: {
       std::vector<Pairing> near;
       for (int i = 0; i < n; ++i)
@@ -247,8 +251,8 @@ std::vector<int> associate(const AssociationParams& params, const AssociationPro
       // then the same with each pairing's cost less its track's prior
       if (tracks) {
         for (Pairing& q : ic)
-          q.cost -= tracks->bonus(p.observation_track(q.observation),
-                                  p.candidate_landmark(q.candidate));
+          q.cost -=
+              tracks->bonus(p.observation_track(q.observation), p.candidate_landmark(q.candidate));
         std::sort(ic.begin(), ic.end(), by_cost);
       }
       greedy(ic, pairing_of, taken);

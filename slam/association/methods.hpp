@@ -36,13 +36,17 @@ enum class AssociationMethod {
   /// same true cone. For ablation only (what the others lose to wrong pairings); flagged in
   /// every output that uses it.
   kIdeal,
+  /// No association (an ablation, RaceUp's first real-world map): every observation starts a
+  /// landmark of its own, so the map holds every detection where the pose put it.
+  kNone,
 };
 
-/// The method's name as scenarios and metrics spell it: nn, ml, scnn, jcbb, tracking, ideal.
+/// The method's name as scenarios and metrics spell it: nn, ml, scnn, jcbb, tracking, ideal,
+/// none.
 std::string_view to_string(AssociationMethod method);
 /// The method of a name, nullopt for an unknown one.
 std::optional<AssociationMethod> association_from_string(std::string_view name);
-/// "nn, ml, scnn, jcbb, tracking, ideal" for error messages.
+/// "nn, ml, scnn, jcbb, tracking, ideal, none" for error messages.
 std::string association_names();
 
 /// Parameters shared by the methods.

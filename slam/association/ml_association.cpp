@@ -180,8 +180,8 @@ std::vector<Association> associate(const AssociationConfig& config, const core::
   }
   if (config.use_track_ids && tracks) {
     for (Pairing& p : pairings)
-      p.cost -= tracks->bonus(observations.cones[p.observation].track_id,
-                              candidates[p.candidate].id);
+      p.cost -=
+          tracks->bonus(observations.cones[p.observation].track_id, candidates[p.candidate].id);
     std::stable_sort(pairings.begin(), pairings.end(), by_cost);
   }
   greedy(pairing_of);
@@ -267,6 +267,13 @@ std::vector<Association> associate_with_method(
     const Eigen::Matrix3d* pose_covariance, const std::vector<LandmarkCandidate>& candidates,
     const core::ConeObservations& observations, bool allow_new, const std::vector<int>* labels,
     const TrackBindings* tracks, std::vector<int>* evidence) {
+  // no association: every observation is a landmark of its own (the map is not searched)
+  if (params.method == AssociationMethod::kNone) {
+    if (evidence) evidence->assign(observations.cones.size(), -1);
+    return std::vector<Association>(
+        observations.cones.size(),
+        allow_new ? Association{Association::kNoLandmark, Association::Kind::kNew} : Association{});
+  }
   const MarginalProblem problem(config, pose, pose_covariance, candidates, observations, labels);
   const std::vector<int> pairing = associate(params, problem, tracks, evidence);
   if (evidence)

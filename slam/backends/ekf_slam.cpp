@@ -78,6 +78,7 @@ void EkfSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
   associations_.clear();
   track_bindings_ = TrackBindings(config_.association.track_memory_frames);
   next_id_ = 0;
+  preliminary_dropped_ = 0;
   phase_ = core::SlamPhase::kMapping;
   map_complete_ = false;
   loop_open_ = false;
@@ -279,9 +280,9 @@ void EkfSlam::process(const SlamInput& input) {
   const auto start = std::chrono::steady_clock::now();
   const bool tracking = config_.association.method == AssociationMethod::kTrackingAided;
   std::vector<int> evidence;
-  const std::vector<int> pairing = associate(config_.association, problem,
-                                             tracking ? &track_bindings_ : nullptr,
-                                             tracking ? &evidence : nullptr);
+  const std::vector<int> pairing =
+      associate(config_.association, problem, tracking ? &track_bindings_ : nullptr,
+                tracking ? &evidence : nullptr);
   association_us_ =
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
 
@@ -419,9 +420,9 @@ void EkfSlam::add_landmark(const core::ConeObservation& o, int id, int label) {
 
 void EkfSlam::handle_unmatched(const core::ConeObservations& obs) {
   // forget the preliminary landmarks that were not confirmed in time
-  std::erase_if(preliminary_, [&](const Preliminary& p) {
+  preliminary_dropped_ += static_cast<int>(std::erase_if(preliminary_, [&](const Preliminary& p) {
     return travel_m_ - p.first_travel_m > config_.preliminary_max_travel_m;
-  });
+  }));
   const core::Pose2 now = pose();
   std::vector<char> seen_now(preliminary_.size(), 0);
   const int n_obs = static_cast<int>(obs.cones.size());
@@ -472,7 +473,7 @@ void EkfSlam::handle_unmatched(const core::ConeObservations& obs) {
       preliminary_.push_back(p);
       seen_now.push_back(1);
       associations_[i] = {p.id, Association::Kind::kNew};
-      if (config_.confirm_sightings <= 1) {
+      if (confirm_sightings() <= 1) {
         add_landmark(o, p.id, p.label);
         preliminary_.pop_back();
         seen_now.pop_back();
@@ -485,7 +486,7 @@ void EkfSlam::handle_unmatched(const core::ConeObservations& obs) {
     p.position += (q - p.position) / p.sightings;
     if (o.cls != core::ConeClass::kUnknown) ++p.class_votes[static_cast<int>(o.cls)];
     associations_[i] = {p.id, Association::Kind::kMatched};
-    if (p.sightings >= config_.confirm_sightings) {
+    if (p.sightings >= confirm_sightings()) {
       // confirmed: into the filter from this sighting, with the votes gathered so far
       const std::array<int, 5> votes = p.class_votes;
       add_landmark(o, p.id, p.label);
@@ -494,6 +495,11 @@ void EkfSlam::handle_unmatched(const core::ConeObservations& obs) {
       seen_now.erase(seen_now.begin() + best);
     }
   }
+}
+
+std::vector<std::pair<std::string, double>> EkfSlam::statistics() const {
+  return {{"landmarks", static_cast<double>(landmarks_.size())},
+          {"preliminary_dropped", static_cast<double>(preliminary_dropped_)}};
 }
 
 void EkfSlam::enter_localisation() {
@@ -508,6 +514,7 @@ void EkfSlam::enter_localisation() {
   x_.conservativeResize(3);
   const Eigen::Matrix3d pose_cov = p_.topLeftCorner<3, 3>();
   p_ = pose_cov;
+  preliminary_dropped_ += static_cast<int>(preliminary_.size());
   preliminary_.clear();
   phase_ = core::SlamPhase::kLocalisation;
   map_complete_ = true;

@@ -23,6 +23,9 @@ struct EkfSlamConfig {
   /// forgets a candidate not confirmed within this distance driven since its first sighting.
   int confirm_sightings = 3;
   double preliminary_max_travel_m = 15.0;
+  /// Monash's preliminary landmark list (the ablation switches it off): false puts every new
+  /// cone into the filter at its first sighting, clutter included.
+  bool preliminary_list = true;
   /// Preliminary sightings are merged within this distance (map frame), m.
   double preliminary_radius_m = 1.0;
   /// An unmatched observation within this distance of a landmark in the map frame, m, and
@@ -79,6 +82,10 @@ class EkfSlam : public Backend {
   int landmarks() const { return static_cast<int>(landmarks_.size()); }
   /// Microseconds the last association took.
   double last_association_us() const override { return association_us_; }
+  /// `landmarks` (in the filter, ever: the joint state's size over two) and
+  /// `preliminary_dropped` (candidates the preliminary list forgot before they were confirmed:
+  /// the landmarks it kept out of the filter).
+  std::vector<std::pair<std::string, double>> statistics() const override;
 
   /// The motion model x' = x (+) delta and its Jacobians by the pose (3x3) and the delta (3x3).
   static core::Pose2 motion(const core::Pose2& pose, const core::Pose2& delta,
@@ -121,6 +128,8 @@ class EkfSlam : public Backend {
   int label_of(size_t i) const { return i < labels_.size() ? labels_[i] : -1; }
   void enter_localisation();
   core::Pose2 pose() const { return {x_(0), x_(1), x_(2)}; }
+  // sightings that put a cone into the filter (1 without the preliminary list)
+  int confirm_sightings() const { return config_.preliminary_list ? config_.confirm_sightings : 1; }
   core::Vec2 landmark_position(const Landmark& lm) const {
     return {x_(lm.index), x_(lm.index + 1)};
   }
@@ -138,6 +147,8 @@ class EkfSlam : public Backend {
   TrackBindings track_bindings_;
   std::vector<int> labels_;
   int next_id_ = 0;
+  /// Candidates the preliminary list forgot unconfirmed: landmarks kept out of the filter.
+  int preliminary_dropped_ = 0;
   core::SlamPhase phase_ = core::SlamPhase::kMapping;
   bool map_complete_ = false;
   bool loop_open_ = false;  // old landmarks may be associated again

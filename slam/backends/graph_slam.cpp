@@ -11,6 +11,7 @@
 #include <unordered_set>
 
 #include "slam/backends/graph_residuals.hpp"
+#include "slam/odometry.hpp"
 
 namespace conesim::slam {
 
@@ -84,6 +85,7 @@ void GraphSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
   map_complete_ = false;
   loop_closures_ = 0;
   closure_due_travel_m_.reset();
+  closure_seen_travel_m_ = 0.0;
   gyro_bias_rps_ = {0.0};
   first_localised_pose_ = 1;
   travel_m_ = 0.0;
@@ -119,11 +121,14 @@ void GraphSlam::process(const SlamInput& input) {
     localise();
     return;
   }
-  optimise_window();
+  // (global-only: the poses stay where the odometry put them until the loop closes)
+  if (!config_.global_only || loop_closures_ > 0) optimise_window();
   const LoopClosureStats stats = update_landmark_statistics();
   if (loop_closures_ > 0) return;
-  if (!closure_due_travel_m_ && loop_closed(config_.loop_closure, stats))
+  if (!closure_due_travel_m_ && loop_closed(config_.loop_closure, stats)) {
     closure_due_travel_m_ = travel_m_ + config_.loop_closure.closure_delay_m;
+    closure_seen_travel_m_ = travel_m_;
+  }
   if (closure_due_travel_m_ && travel_m_ >= *closure_due_travel_m_) close_loop();
 }
 
@@ -147,13 +152,7 @@ void GraphSlam::predict(const OdometryDelta& odometry) {
 
   // the pose covariance grows by the odometry's, rotated into the map frame
   const core::Pose2 from = previous_pose;
-  Eigen::Matrix3d f_pose;
-  f_pose << 1, 0, -std::sin(from.yaw) * odometry.delta.x - std::cos(from.yaw) * odometry.delta.y, 0,
-      1, std::cos(from.yaw) * odometry.delta.x - std::sin(from.yaw) * odometry.delta.y, 0, 0, 1;
-  Eigen::Matrix3d f_delta = Eigen::Matrix3d::Identity();
-  f_delta.topLeftCorner<2, 2>() = Eigen::Rotation2Dd(from.yaw).toRotationMatrix();
-  pose_covariance_ = f_pose * pose_covariance_ * f_pose.transpose() +
-                     f_delta * odometry.covariance * f_delta.transpose();
+  pose_covariance_ = compose_covariance(from, odometry, pose_covariance_);
   speed_mps_ = odometry.speed_mps;
   yaw_rate_rps_ = odometry.yaw_rate_rps;
 }
@@ -217,19 +216,17 @@ void GraphSlam::associate_batch(const core::ConeObservations& observations) {
   const std::vector<LandmarkCandidate> in_reach = candidates(farthest_m);
   const auto start = std::chrono::steady_clock::now();
   const bool allow_new = phase_ == core::SlamPhase::kMapping;
-  const bool tracking = config_.method
-                            ? config_.method->method == AssociationMethod::kTrackingAided
-                            : config_.association.use_track_ids;
+  const bool tracking = config_.method ? config_.method->method == AssociationMethod::kTrackingAided
+                                       : config_.association.use_track_ids;
   const TrackBindings* tracks = tracking ? &track_bindings_ : nullptr;
   std::vector<int>* evidence = tracking ? &evidence_ : nullptr;
   evidence_.clear();
-  associations_ =
-      config_.method
-          ? associate_with_method(*config_.method, config_.association, poses_.back().pose(),
-                                  &pose_covariance_, in_reach, observations, allow_new, &labels_,
-                                  tracks, evidence)
-          : associate(config_.association, poses_.back().pose(), &pose_covariance_, in_reach,
-                      observations, allow_new, tracks, evidence);
+  associations_ = config_.method
+                      ? associate_with_method(*config_.method, config_.association,
+                                              poses_.back().pose(), &pose_covariance_, in_reach,
+                                              observations, allow_new, &labels_, tracks, evidence)
+                      : associate(config_.association, poses_.back().pose(), &pose_covariance_,
+                                  in_reach, observations, allow_new, tracks, evidence);
   association_us_ =
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
 }
@@ -352,7 +349,8 @@ void GraphSlam::optimise_window() {
   std::vector<int> window_landmarks;
   for (int i = first; i < n; ++i) {
     add_motion_edges(problem, i);
-    for (int e : poses_[i].edges) window_landmarks.push_back(edges_[e].landmark);
+    if (config_.landmark_edges)
+      for (int e : poses_[i].edges) window_landmarks.push_back(edges_[e].landmark);
   }
   problem.SetParameterBlockConstant(poses_[first - 1].x.data());
   problem.SetParameterBlockConstant(gyro_bias_rps_.data());
@@ -451,7 +449,8 @@ LoopClosureStats GraphSlam::update_landmark_statistics() {
     const bool missed_too_often = in_view && !seen && ++lm.misses > lm.sightings;
     const bool stale =
         !lm.confirmed && travel_m_ - lm.first_travel_m > config_.tentative_max_travel_m;
-    if ((missed_too_often || stale) && !lm.fixed) {
+    // (without association every observation stays a landmark: nothing is pruned)
+    if ((missed_too_often || stale) && !lm.fixed && !no_association()) {
       remove_landmark(lm);
       continue;
     }
@@ -490,9 +489,9 @@ void GraphSlam::close_loop() {
   } else {
     problem.SetParameterBlockConstant(gyro_bias_rps_.data());
   }
-  for (ObservationEdge& edge : edges_) {
+  for (const int e : closure_edges()) {
+    ObservationEdge& edge = edges_[e];
     Landmark& lm = landmarks_[edge.landmark];
-    if (lm.removed) continue;
     problem.AddResidualBlock(edge.cost.get(), huber_.get(), poses_[edge.pose].x.data(),
                              lm.x.data());
     if (lm.fixed) problem.SetParameterBlockConstant(lm.x.data());
@@ -502,6 +501,7 @@ void GraphSlam::close_loop() {
   ++loop_closures_;
   // every pose moved: the priors folded at the old poses no longer hold
   unfold_all();
+  if (!config_.landmark_edges) place_landmarks_from_poses();
 
   // the map is final: tentative landmarks go, the rest are fixed, and we localise from now on
   if (!config_.localise_after_loop_closure) return;
@@ -512,6 +512,53 @@ void GraphSlam::close_loop() {
   phase_ = core::SlamPhase::kLocalisation;
   map_complete_ = true;
   first_localised_pose_ = static_cast<int>(poses_.size());
+}
+
+std::vector<int> GraphSlam::closure_edges() const {
+  std::vector<int> out;
+  if (config_.landmark_edges) {
+    for (size_t e = 0; e < edges_.size(); ++e)
+      if (!landmarks_[edges_[e].landmark].removed) out.push_back(static_cast<int>(e));
+    return out;
+  }
+  // without landmark edges: the landmarks seen both from the start's poses and from the
+  // closing poses, with only those observations (they fix the lap's end against its start)
+  const double start_window_m = config_.loop_closure.start_window_m;
+  auto at_start = [&](const ObservationEdge& edge) {
+    return poses_[edge.pose].travel_m <= start_window_m;
+  };
+  auto closing = [&](const ObservationEdge& edge) {
+    return poses_[edge.pose].travel_m >= closure_seen_travel_m_;
+  };
+  for (const Landmark& lm : landmarks_) {
+    if (lm.removed) continue;
+    bool seen_at_start = false, seen_closing = false;
+    for (const int e : lm.edges) {
+      seen_at_start = seen_at_start || at_start(edges_[e]);
+      seen_closing = seen_closing || closing(edges_[e]);
+    }
+    if (!seen_at_start || !seen_closing) continue;
+    for (const int e : lm.edges)
+      if (at_start(edges_[e]) || closing(edges_[e])) out.push_back(e);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+void GraphSlam::place_landmarks_from_poses() {
+  // each landmark at the information-weighted mean of its observations from the optimised poses
+  for (Landmark& lm : landmarks_) {
+    if (lm.removed || lm.fixed || lm.edges.empty()) continue;
+    Eigen::Matrix2d information = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d weighted_mean = Eigen::Vector2d::Zero();
+    for (const int e : lm.edges) {
+      const ObservationEdge& edge = edges_[e];
+      fold_observation(poses_[edge.pose].pose(), edge.measured, edge.sqrt_information, information,
+                       weighted_mean);
+    }
+    const Eigen::Vector2d x = information.ldlt().solve(weighted_mean);
+    lm.x = {x.x(), x.y()};
+  }
 }
 
 core::Estimate GraphSlam::estimate() const {

@@ -65,6 +65,14 @@ struct GraphSlamConfig {
   double gyro_bias_sigma_rps = 0.0;
   /// Sigma of the ICR edge's lateral residual, m (0 disables the edge).
   double icr_sigma_m = 0.05;
+  /// Ablation (RaceUp's simulator set-up): no sliding-window optimisation while mapping, the
+  /// poses follow the odometry and only the loop closure optimises, once, the whole graph.
+  bool global_only = false;
+  /// Ablation (RaceUp, Fig. 7.12): false keeps the observation edges out of the optimisation,
+  /// an odometry-only graph, except for the loop closure: the edges from the start's poses and
+  /// from the closing poses to the landmarks both saw tie the lap's end to its start. After the
+  /// closure every landmark is placed again from its observations on the optimised poses.
+  bool landmark_edges = true;
   /// Huber threshold of observation edges, in whitened units (sigmas).
   double observation_huber = 3.0;
   /// Variance growth of a landmark's position relative to the car per metre driven since it was
@@ -184,6 +192,15 @@ class GraphSlam : public Backend {
   void fold_edges_before(int first);
   // forgets the folded priors (the poses they were folded at have moved)
   void unfold_all();
+  // the observation edges the loop closure optimises: all of them, or without landmark edges
+  // those that tie the lap's end to its start
+  std::vector<int> closure_edges() const;
+  // places every landmark that is not fixed at the mean of its observations from the poses
+  void place_landmarks_from_poses();
+  // true when no association runs (every observation a landmark of its own)
+  bool no_association() const {
+    return config_.method && config_.method->method == AssociationMethod::kNone;
+  }
 
   GraphSlamConfig config_;
   std::deque<PoseNode> poses_;
@@ -207,6 +224,8 @@ class GraphSlam : public Backend {
   int loop_closures_ = 0;
   // the loop was seen to close and the global optimisation runs at this distance driven
   std::optional<double> closure_due_travel_m_;
+  /// The distance driven when the loop was seen to close (the closing poses start there).
+  double closure_seen_travel_m_ = 0.0;
   /// Covariance of the newest pose, for the association gate: grown by the odometry, shrunk by
   /// the matched observations.
   Eigen::Matrix3d pose_covariance_ = Eigen::Matrix3d::Zero();

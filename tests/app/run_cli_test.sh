@@ -32,7 +32,7 @@ bad width_wrap '^--set: sensors\.camera\.width_px: expected a whole number' \
   skidpad --set sensors.camera.width_px=4294967936
 
 # SLAM back-ends and association methods by name
-bad slam_backend "^--set: slam\\.drive: expected none or a SLAM back-end \\(graph, ekf, fastslam1, fastslam2\\), got 'magic'" \
+bad slam_backend "^--set: slam\\.drive: expected none or a SLAM back-end \\(graph, ekf, fastslam1, fastslam2, odometry\\), got 'magic'" \
   trackdrive-graphslam --set slam.drive=magic
 bad slam_shadow '^--set: slam\.shadow: expected back-ends' trackdrive-graphslam --set 'slam.shadow=[ekf,x]'
 bad slam_association '^--set: slam\.association: expected an association method' \

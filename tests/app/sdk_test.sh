@@ -138,8 +138,11 @@ dnf perception_nan "^perception plug-in 'faulty' \(.*\) returned NaN as a cone's
 
 # 7: the reference driver loaded as a plug-in gives the built-in run's metrics, to the bit
 #    (but for the wall-clock timings and the autonomy key naming the plug-in)
-check builtin_run 0 "$bin" run trackdrive-graphslam --no-plot --out "$work/builtin"
-check builtin_as_plugin 0 "$bin" run trackdrive-graphslam --no-plot --out "$work/as_plugin" \
+#    and the same exit status (whether the scenario's pass criteria hold is not the point here)
+"$bin" run trackdrive-graphslam --no-plot --out "$work/builtin" >/dev/null 2>&1
+builtin_status=$?
+check builtin_as_plugin "$builtin_status" "$bin" run trackdrive-graphslam --no-plot \
+  --out "$work/as_plugin" \
   --set "autonomy.driver={plugin: $reference, config: {explore_speed_mps: 9, fast_speed_mps: 16}}"
 python3 - "$work/builtin/metrics.json" "$work/as_plugin/metrics.json" >"$work/diff" <<'PY'
 import json, sys

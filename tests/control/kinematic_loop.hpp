@@ -46,6 +46,9 @@ struct LoopParams {
   /// Yaw rate over the kinematic one at a steering angle (the MuJoCo car's anti-Ackermann
   /// loss, as the driver knows it); empty: kinematic.
   std::vector<std::pair<double, double>> yaw_gain = VehicleGeometry{}.yaw_gain;
+  /// Understeer the driver does not know of: the car turns on the curvature its steering gives
+  /// divided by (1 + understeer * lateral acceleration), s^2/m; 0: none.
+  double understeer_s2pm = 0.0;
   /// Give up after this much simulated time, seconds.
   double max_time_s = 600.0;
   /// Called after each driver update with the time, the true pose and the driver's status
@@ -116,6 +119,8 @@ inline LoopResult run_loop(const tracks::Track& track, core::EventType event,
   std::vector<bool> seen(track.cones.size(), false), hit(track.cones.size(), false);
   std::vector<core::MapCone> map;
   double v = 0.0, steer = 0.0, accel = 0.0;
+  // the steering angle the car turns as (its yaw loss and understeer applied)
+  double effective_steer = 0.0;
   core::VehicleCommand cmd;
   const int steps_per_driver =
       std::max(1, static_cast<int>(std::lround(loop.driver_period_s / loop.dt_s)));
@@ -152,7 +157,8 @@ inline LoopResult run_loop(const tracks::Track& track, core::EventType event,
       in.estimate.stamp = in.observations.stamp;
       in.estimate.pose = map_origin.inverse().compose(pose);
       in.estimate.speed_mps = v;
-      in.estimate.yaw_rate_rps = vehicle_models::bicycle_yaw_rate(v, steer, vehicle.wheelbase_m);
+      in.estimate.yaw_rate_rps =
+          vehicle_models::bicycle_yaw_rate(v, effective_steer, vehicle.wheelbase_m);
       in.estimate.map = map;
       cmd = driver.update(in);
       if (loop.on_update) loop.on_update(t, pose, driver.status());
@@ -175,7 +181,12 @@ inline LoopResult run_loop(const tracks::Track& track, core::EventType event,
 
     // motion
     const Vec2 front_before = pose.transform({loop.front_m, 0.0});
-    const double effective_steer = std::atan(std::tan(steer) * yaw_gain_at(loop.yaw_gain, steer));
+    effective_steer = std::atan(std::tan(steer) * yaw_gain_at(loop.yaw_gain, steer));
+    if (loop.understeer_s2pm > 0.0) {
+      const double k = std::tan(effective_steer) / vehicle.wheelbase_m;
+      effective_steer =
+          std::atan(vehicle.wheelbase_m * k / (1.0 + loop.understeer_s2pm * v * v * std::abs(k)));
+    }
     pose = vehicle_models::bicycle_step(pose, v, effective_steer, vehicle.wheelbase_m, loop.dt_s);
     v = std::max(0.0, v + accel * loop.dt_s);
     result.max_speed_mps = std::max(result.max_speed_mps, v);

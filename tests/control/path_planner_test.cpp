@@ -5,6 +5,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "test_tracks.hpp"
 #include "tracks/generator.hpp"
 
 namespace conesim::control {
@@ -30,6 +31,13 @@ std::vector<MapCone> corridor(double x0, double x1, bool left = true, bool right
     if (right) cones.push_back(cone(ConeClass::kYellow, {x, -kHalfWidthM}));
   }
   return cones;
+}
+
+// every cone of a track as a map
+std::vector<MapCone> map_of(const tracks::Track& track) {
+  std::vector<MapCone> map;
+  for (const tracks::Cone& c : track.cones) map.push_back(cone(c.cls, c.position));
+  return map;
 }
 
 // largest |y| of the path points beyond x_from (the car itself may be off the middle)
@@ -121,8 +129,7 @@ TEST(PathPlanner, GeneratedCircuitFromItsWholeMapFollowsTheCentreLine) {
   // every cone of a generated circuit, the car behind the start line: the planned loop lies on
   // the designed centre line within the boundary chords' sag and has its length
   const tracks::Track track = tracks::generate_circuit(1);
-  std::vector<MapCone> map;
-  for (const tracks::Cone& c : track.cones) map.push_back(cone(c.cls, c.position));
+  const std::vector<MapCone> map = map_of(track);
   const std::optional<Path> circuit = plan_circuit(map, track.start.compose({-2.25, 0.0, 0.0}), {});
   ASSERT_TRUE(circuit);
   const Path designed{track.centre_line, true};
@@ -132,6 +139,116 @@ TEST(PathPlanner, GeneratedCircuitFromItsWholeMapFollowsTheCentreLine) {
   for (const Vec2& p : circuit->points)
     worst = std::max(worst, project_onto(designed, p, 0, designed.segment_count()).distance_m);
   EXPECT_LT(worst, 0.3);
+}
+
+// two FSG minimum hairpins (9 m outside diameter, 3 m lanes, a cone every 2 m)
+tracks::Track minimum_hairpins() {
+  testing::CentreLine c;
+  c.straight(40).arc(3.0, kPi).straight(40).arc(3.0, kPi);
+  return testing::circuit_from_centre(c.points(), 3.0, 2.0);
+}
+
+// the largest step between consecutive points of a closed chain, metres
+double longest_link(const std::vector<Vec2>& chain) {
+  double worst = 0.0;
+  for (size_t i = 0; i < chain.size(); ++i)
+    worst = std::max(worst, (chain[(i + 1) % chain.size()] - chain[i]).norm());
+  return worst;
+}
+
+TEST(PathPlanner, ConesOrderedAlongTheDrivenLapCloseRoundMinimumHairpins) {
+  // the inner cones of a minimum hairpin turn by about 80 degrees from link to link, more than
+  // a chain may: the lap the car drove orders them instead, every cone on its own side in turn
+  const tracks::Track track = minimum_hairpins();
+  const std::vector<MapCone> map = map_of(track);
+  const Pose2 start = track.start.compose({-2.25, 0.0, 0.0});
+  const Boundaries chained = chain_boundaries(map, start, {}, 3000.0, true);
+  EXPECT_FALSE(chained.left_closed && chained.right_closed);
+
+  const Boundaries b = boundaries_along(Path{track.centre_line, true}, map, {});
+  ASSERT_TRUE(b.left_closed);
+  ASSERT_TRUE(b.right_closed);
+  EXPECT_EQ(b.left.size(), track.left_lane.size());
+  EXPECT_EQ(b.right.size(), track.right_lane.size());
+  // in order round the loop: no step longer than the cone spacing and a little
+  EXPECT_LT(longest_link(b.left), 2.3);
+  EXPECT_LT(longest_link(b.right), 2.3);
+  for (const Vec2& p : b.left) {
+    for (const tracks::Cone& c : track.cones) {
+      if ((c.position - p).norm() < 1e-9) {
+        EXPECT_EQ(c.cls, ConeClass::kBlue);
+      }
+    }
+  }
+}
+
+TEST(PathPlanner, ConesOrderedAlongALapKeepTheirSideAndLeaveFarOnesOut) {
+  // a blue cone right of the lap (a wrong colour) and cones of something 10 m away stay out
+  const tracks::Track track = minimum_hairpins();
+  std::vector<MapCone> map = map_of(track);
+  map.push_back(cone(ConeClass::kBlue, {20.0, -1.5}));
+  map.push_back(cone(ConeClass::kYellow, {20.0, -12.0}));
+  map.push_back(cone(ConeClass::kBlue, {25.0, -12.0}));
+  const Boundaries b = boundaries_along(Path{track.centre_line, true}, map, {});
+  EXPECT_EQ(b.left.size(), track.left_lane.size());
+  EXPECT_EQ(b.right.size(), track.right_lane.size());
+}
+
+TEST(PathPlanner, ConesOrderedAlongALapWithALongGapDoNotClose) {
+  // 30 m without a right cone is more than two missing links: that side is not a boundary
+  testing::CentreLine c;
+  c.straight(40).arc(3.0, kPi).straight(40).arc(3.0, kPi);
+  const tracks::Track track = testing::circuit_from_centre(c.points(), 3.0, 2.0, 10.0, 40.0);
+  const Boundaries b = boundaries_along(Path{track.centre_line, true}, map_of(track), {});
+  EXPECT_TRUE(b.left_closed);
+  EXPECT_FALSE(b.right_closed);
+}
+
+TEST(PathPlanner, AMissingConeOnACurvesInsideIsAssumedWhereItStood) {
+  // a circle of 12 m radius, a cone every 2.5 m on 3 m lanes; one inner cone left out: the gap
+  // is filled near where the cone stood (the chord would pass it 0.3 m further out), and
+  // nothing is added where no cone is missing
+  constexpr double kRadiusM = 12.0, kSpacingM = 2.5;
+  std::vector<MapCone> map;
+  Boundaries b;
+  b.left_closed = b.right_closed = true;
+  const int n = static_cast<int>(std::round(2.0 * kPi * (kRadiusM - 1.5) / kSpacingM));
+  const int left_out = 7;
+  Vec2 missing = Vec2::Zero();
+  for (int i = 0; i < n; ++i) {
+    const double phi = -0.5 * kPi + 2.0 * kPi * i / n;
+    const Vec2 p = (kRadiusM - 1.5) * Vec2(std::cos(phi), std::sin(phi));
+    if (i == left_out) {
+      missing = p;
+      continue;
+    }
+    b.left.push_back(p);
+    map.push_back(cone(ConeClass::kBlue, p));
+  }
+  for (int i = 0; i < n; ++i) {
+    const double phi = -0.5 * kPi + 2.0 * kPi * i / n;
+    b.right.push_back((kRadiusM + 1.5) * Vec2(std::cos(phi), std::sin(phi)));
+  }
+  const size_t cones_before = map.size();
+  const Boundaries f = with_gaps_filled(b, map);
+  ASSERT_EQ(f.left.size(), b.left.size() + 1);
+  EXPECT_EQ(f.right.size(), b.right.size());
+  ASSERT_EQ(map.size(), cones_before + 1);
+  EXPECT_EQ(map.back().cls, ConeClass::kBlue);
+  EXPECT_LT((map.back().position - missing).norm(), 0.05);
+  EXPECT_LT((f.left[left_out] - missing).norm(), 0.05);
+}
+
+TEST(PathPlanner, AConeOfTheWrongColourForItsSideBecomesAnObstacleOnly) {
+  const tracks::Track track = minimum_hairpins();
+  std::vector<MapCone> map = map_of(track);
+  map.push_back(cone(ConeClass::kYellow, {20.0, 1.5}));  // on the left lane
+  map.push_back(cone(ConeClass::kBlue, {20.0, -12.0}));  // far from the lap: not judged
+  const std::vector<MapCone> kept = with_sides_kept(Path{track.centre_line, true}, map, {});
+  ASSERT_EQ(kept.size(), map.size());
+  for (size_t i = 0; i + 2 < map.size(); ++i) EXPECT_EQ(kept[i].cls, map[i].cls) << "cone " << i;
+  EXPECT_EQ(kept[map.size() - 2].cls, ConeClass::kUnknown);
+  EXPECT_EQ(kept.back().cls, ConeClass::kBlue);
 }
 
 TEST(PathPlanner, OpenBoundariesGiveNoCircuit) {

@@ -63,11 +63,97 @@ TEST_F(ScenarioFile, SlamBlockNamesTheDrivingAndTheShadowBackEnds) {
   EXPECT_EQ(one.slam_shadows[0].lane_name(), "ekf");
 }
 
+TEST_F(ScenarioFile, AblationsAreShadowLanesAndKeys) {
+  const std::string head = "event: trackdrive\nperception: cone_sensor\n";
+  // NAME[:METHOD][+ABLATION...]: the lane's name keeps them all, in the order given
+  const Scenario s = load_scenario(
+      write(head + "slam: {drive: graph, shadow: ['graph:ideal+global_only+no_icr',\n"
+                   "  graph+no_landmark_edges, 'graph:none', ekf+no_preliminary, odometry,\n"
+                   "  'odometry:none']}\n"));
+  ASSERT_EQ(s.slam_shadows.size(), 6u);
+  EXPECT_EQ(s.slam_shadows[0].lane_name(), "graph-ideal+global_only+no_icr");
+  EXPECT_EQ(s.slam_shadows[0].ablations, (std::vector<std::string>{"global_only", "no_icr"}));
+  EXPECT_EQ(s.slam_shadows[1].lane_name(), "graph+no_landmark_edges");
+  EXPECT_EQ(s.slam_shadows[2].association, slam::AssociationMethod::kNone);
+  EXPECT_EQ(s.slam_shadows[3].lane_name(), "ekf+no_preliminary");
+  EXPECT_EQ(s.slam_shadows[4].backend, "odometry");
+  EXPECT_EQ(s.slam_shadows[5].lane_name(), "odometry-none");
+  // the same switches as keys, for every lane of the back-end
+  const Scenario k = load_scenario(
+      write(head + "slam: {drive: graph, graph: {global_only: true, landmark_edges: false,\n"
+                   "  icr: false}, ekf: {preliminary_list: false},\n"
+                   "  odometry: {confirm_sightings: 2, nn_radius_m: 0.8}}\n"));
+  EXPECT_TRUE(k.slam_settings.graph.global_only);
+  EXPECT_FALSE(k.slam_settings.graph.landmark_edges);
+  EXPECT_EQ(k.slam_settings.graph.icr_sigma_m, 0.0);
+  EXPECT_FALSE(k.slam_settings.ekf.preliminary_list);
+  EXPECT_EQ(k.slam_settings.odometry.confirm_sightings, 2);
+  EXPECT_DOUBLE_EQ(k.slam_settings.odometry.association.nn_radius_m, 0.8);
+  // icr: true keeps today's edge and its sigma
+  EXPECT_DOUBLE_EQ(load_scenario(write(head + "slam: {drive: graph, graph: {icr: true}}\n"))
+                       .slam_settings.graph.icr_sigma_m,
+                   default_slam_settings().graph.icr_sigma_m);
+  // dead reckoning may drive
+  EXPECT_EQ(load_scenario(write(head + "slam: odometry\n")).slam, "odometry");
+}
+
+TEST_F(ScenarioFile, OdometrySensorNoiseIsAScenarioKey) {
+  const std::string head = "event: trackdrive\nperception: cone_sensor\nslam: graph\n";
+  const Scenario s =
+      load_scenario(write(head + "sensors: {imu: {gyro_noise_density_rps_rthz: 1.2e-3},\n"
+                                 "  wheel_encoders: {noise_rps: 0.2}}\n"));
+  EXPECT_DOUBLE_EQ(s.sensors.imu.gyro_noise_density_rps_rthz, 1.2e-3);
+  EXPECT_DOUBLE_EQ(s.sensors.wheel_encoders.noise_rps, 0.2);
+  EXPECT_NE(error_of(head + "sensors: {imu: {gyro_noise_density_rps_rthz: -1}}\n")
+                .find("sensors.imu.gyro_noise_density_rps_rthz"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "sensors: {wheel_encoders: {teeth: 3}}\n")
+                .find("sensors.wheel_encoders.teeth: unknown key"),
+            std::string::npos);
+}
+
+TEST_F(ScenarioFile, BadAblationsNameTheKeyAndWhatWasExpected) {
+  const std::string head = "event: trackdrive\nperception: cone_sensor\n";
+  EXPECT_NE(error_of(head + "slam: {drive: graph, shadow: [graph+no_gps]}\n")
+                .find("slam.shadow: unknown ablation 'no_gps' in 'graph+no_gps': graph has "
+                      "global_only, no_landmark_edges, no_icr"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, shadow: [fastslam1+global_only]}\n")
+                .find("unknown ablation 'global_only' in 'fastslam1+global_only': fastslam1 "
+                      "has none"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, shadow: [ekf+no_icr]}\n")
+                .find("ekf has no_preliminary"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, shadow: ['ekf:none']}\n")
+                .find("slam.shadow: none (every observation a new landmark) runs on graph or "
+                      "odometry"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, association: none}\n")
+                .find("slam.association: none (every observation a new landmark) is for shadow "
+                      "back-ends only"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, shadow: ['odometry:tracking']}\n")
+                .find("slam.shadow: odometry (dead reckoning) has no track memory"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, graph: {icr: maybe}}\n").find("slam.graph.icr:"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, ekf: {preliminary_list: 3}}\n")
+                .find("slam.ekf.preliminary_list:"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, odometry: {confirm_sightings: 0}}\n")
+                .find("slam.odometry.confirm_sightings: expected a count >= 1"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, odometry: {reach: 3}}\n")
+                .find("slam.odometry.reach: unknown key"),
+            std::string::npos);
+}
+
 TEST_F(ScenarioFile, BadSlamBlocksNameTheKeyAndWhatWasExpected) {
   const std::string head = "event: trackdrive\nperception: cone_sensor\n";
   EXPECT_NE(error_of(head + "slam: fastslam9\n")
                 .find("s.yaml:3: slam: expected none or a SLAM back-end (graph, ekf, fastslam1, "
-                      "fastslam2), got "
+                      "fastslam2, odometry), got "
                       "'fastslam9'"),
             std::string::npos);
   EXPECT_NE(error_of(head + "slam: {drive: graph, shadow: [ekf, foo]}\n")
@@ -79,14 +165,14 @@ TEST_F(ScenarioFile, BadSlamBlocksNameTheKeyAndWhatWasExpected) {
             std::string::npos);
   EXPECT_NE(error_of(head + "slam: {drive: graph, association: psychic}\n")
                 .find("slam.association: expected an association method (nn, ml, scnn, jcbb, "
-                      "tracking, ideal), got 'psychic'"),
+                      "tracking, ideal, none), got 'psychic'"),
             std::string::npos);
   EXPECT_NE(error_of(head + "slam: {drive: graph, association: {ekf: x}}\n")
                 .find("slam.association.ekf: expected an association method"),
             std::string::npos);
   EXPECT_NE(error_of(head + "slam: {drive: graph, bogus: 1}\n")
                 .find("slam.bogus: unknown key; expected one of: drive, shadow, association, ekf, "
-                      "fastslam, graph"),
+                      "fastslam, odometry, graph"),
             std::string::npos);
   EXPECT_NE(error_of(head + "slam: {shadow: [ekf]}\n")
                 .find("slam.shadow: shadow back-ends run beside a driving one"),
@@ -111,8 +197,9 @@ TEST_F(ScenarioFile, BadSlamBlocksNameTheKeyAndWhatWasExpected) {
             std::string::npos);
   {
     const Scenario f = load_scenario(
-        write(head + "slam: {drive: fastslam2, shadow: [fastslam1, 'fastslam1:jcbb'],\n"
-                     "  fastslam: {particles: 20, unseen_penalty: 0.8, loop_closure_factor: 0.7}}\n"));
+        write(head +
+              "slam: {drive: fastslam2, shadow: [fastslam1, 'fastslam1:jcbb'],\n"
+              "  fastslam: {particles: 20, unseen_penalty: 0.8, loop_closure_factor: 0.7}}\n"));
     EXPECT_EQ(f.slam, "fastslam2");
     ASSERT_EQ(f.slam_shadows.size(), 2u);
     EXPECT_EQ(f.slam_shadows[1].lane_name(), "fastslam1-jcbb");
@@ -158,7 +245,8 @@ TEST_F(ScenarioFile, OverridesApplyBeforeValidation) {
   EXPECT_DOUBLE_EQ(s.driver.fast_speed_mps, 12.5);
   EXPECT_NE(error_of("event: trackdrive\n", {"driver.fast_speed_mps=-1"}).find("fast_speed_mps"),
             std::string::npos);
-  EXPECT_NE(error_of("event: trackdrive\n", {"nonsense"}).find("key.path=value"), std::string::npos);
+  EXPECT_NE(error_of("event: trackdrive\n", {"nonsense"}).find("key.path=value"),
+            std::string::npos);
 }
 
 TEST_F(ScenarioFile, GeneratedCircuitTakesAProfile) {
@@ -195,8 +283,9 @@ TEST_F(ScenarioFile, BadInputNamesFileLineAndKey) {
             std::string::npos);
   EXPECT_NE(error_of("event: autocross\nvehicle: {mass_kg: -3}\n").find("mass_kg"),
             std::string::npos);
-  EXPECT_NE(error_of("event: autocross\nperception: radar\n").find("s.yaml:2: perception: "
-                                                                   "expected ground_truth"),
+  EXPECT_NE(error_of("event: autocross\nperception: radar\n")
+                .find("s.yaml:2: perception: "
+                      "expected ground_truth"),
             std::string::npos);
   EXPECT_NE(error_of("event: autocross\nslam: graph\n").find("slam: SLAM needs"),
             std::string::npos);
@@ -339,7 +428,8 @@ TEST_F(ScenarioFile, UnknownScenarioNameListsTheShippedOnes) {
 }
 
 TEST_F(ScenarioFile, DefaultVehicleFileMatchesTheBuiltInDefaults) {
-  const auto file = load_vehicle(fs::path(CONESIM_SOURCE_DIR) / "vehicle_models/params/default.yaml");
+  const auto file =
+      load_vehicle(fs::path(CONESIM_SOURCE_DIR) / "vehicle_models/params/default.yaml");
   const vehicle_models::VehicleParams builtin;
   EXPECT_EQ(file.name, builtin.name);
   EXPECT_DOUBLE_EQ(file.mass_kg, builtin.mass_kg);

@@ -54,6 +54,17 @@ nlohmann::json without_timing(nlohmann::json m) {
   return m;
 }
 
+// the car drove the same with the shadows as without: every row's truth, command and driving
+// estimate to the last digit, and the driving lane's figures
+void expect_same_drive(const LaneRun& alone, const LaneRun& shadowed) {
+  ASSERT_EQ(alone.trajectory.size(), shadowed.trajectory.size());
+  for (size_t i = 1; i < alone.trajectory.size(); ++i)
+    ASSERT_EQ(first_fields(alone.trajectory[i], 10), first_fields(shadowed.trajectory[i], 10))
+        << "row " << i;
+  EXPECT_EQ(without_timing(alone.result.metrics["slam"]["graph"]),
+            without_timing(shadowed.result.metrics["slam"]["graph"]));
+}
+
 TEST(SlamLanes, ShadowsAreScoredAndLeaveTheDrivenTrajectoryBitIdentical) {
   const LaneRun alone = run_trackdrive({}, "alone");
   const LaneRun shadowed =
@@ -102,12 +113,7 @@ TEST(SlamLanes, FastSlamShadowsLeaveTheDrivenTrajectoryBitIdenticalAndNameTheirP
   const LaneRun shadowed = run_trackdrive(
       {"driver.trackdrive_laps=1", "slam.shadow=[fastslam1, fastslam2]"}, "fs-shadowed");
   ASSERT_TRUE(alone.result.referee.completed);
-  ASSERT_EQ(alone.trajectory.size(), shadowed.trajectory.size());
-  for (size_t i = 1; i < alone.trajectory.size(); ++i)
-    ASSERT_EQ(first_fields(alone.trajectory[i], 10), first_fields(shadowed.trajectory[i], 10))
-        << "row " << i;
-  EXPECT_EQ(without_timing(alone.result.metrics["slam"]["graph"]),
-            without_timing(shadowed.result.metrics["slam"]["graph"]));
+  expect_same_drive(alone, shadowed);
   const nlohmann::json& slam = shadowed.result.metrics["slam"];
   EXPECT_EQ(slam["graph"]["estimate_source"], "state");
   for (const char* lane : {"fastslam1", "fastslam2"}) {
@@ -121,6 +127,56 @@ TEST(SlamLanes, FastSlamShadowsLeaveTheDrivenTrajectoryBitIdenticalAndNameTheirP
     EXPECT_GT(slam[lane]["backend_stats"]["resamplings"].get<double>(), 0.0) << lane;
     EXPECT_GE(slam[lane]["da_correct_fraction"].get<double>(), 0.99) << lane;
   }
+}
+
+TEST(SlamLanes, AblationShadowsLeaveTheDrivenTrajectoryBitIdenticalAndSayWhatTheyAre) {
+  const std::string lanes =
+      "slam.shadow=[odometry, 'odometry:none', 'graph:ideal+global_only', "
+      "graph+no_landmark_edges, graph+no_icr, 'graph:none', ekf, ekf+no_preliminary]";
+  const LaneRun alone = run_trackdrive({}, "abl-alone");
+  const LaneRun shadowed = run_trackdrive({lanes}, "abl-shadowed");
+  ASSERT_TRUE(alone.result.referee.completed);
+  expect_same_drive(alone, shadowed);
+  const nlohmann::json& slam = shadowed.result.metrics["slam"];
+  using nlohmann::json;
+  EXPECT_EQ(slam["graph"]["ablations"], json::array());
+  EXPECT_EQ(slam["graph-ideal+global_only"]["ablations"], json::array({"global_only"}));
+  EXPECT_EQ(slam["graph+no_landmark_edges"]["ablations"], json::array({"no_landmark_edges"}));
+  EXPECT_EQ(slam["graph+no_icr"]["ablations"], json::array({"no_icr"}));
+  EXPECT_EQ(slam["graph-none"]["ablations"], json::array({"no_association"}));
+  EXPECT_EQ(slam["ekf+no_preliminary"]["ablations"], json::array({"no_preliminary"}));
+  EXPECT_EQ(slam["odometry"]["association"], "nn");
+
+  // dead reckoning: no loop closure, yet every cone in view mapped
+  EXPECT_EQ(slam["odometry"]["loop_closures"].get<int>(), 0);
+  EXPECT_EQ(slam["odometry"]["phase"], "mapping");
+  EXPECT_LE(slam["odometry"]["map_missed_fraction"].get<double>(), 0.05);
+  // no association: every observation a landmark, far more than there are cones in view
+  for (const char* lane : {"odometry-none", "graph-none"}) {
+    const int landmarks =
+        slam[lane]["map_matched"].get<int>() + slam[lane]["map_spurious"].get<int>();
+    EXPECT_GT(landmarks, 10 * slam[lane]["map_cones_in_view"].get<int>()) << lane;
+    EXPECT_TRUE(slam[lane]["da_correct_fraction"].is_null()) << lane;
+  }
+  // the RaceUp simulator set-up: labels pair, the graph is solved once, at the loop closure
+  EXPECT_EQ(slam["graph-ideal+global_only"]["da_wrong"].get<int>(), 0);
+  EXPECT_EQ(slam["graph-ideal+global_only"]["loop_closures"].get<int>(), 1);
+  EXPECT_LE(slam["graph-ideal+global_only"]["map_rmse_m"].get<double>(), 0.15);
+  // poses and loop closure only: the loop still closes, and closing it leaves the path better
+  // than dead reckoning's, the map not as good as the full graph's (the lap's drift is spread
+  // along the odometry, not pulled onto the cones). Its map is not reliably better than dead
+  // reckoning's: 0.259 against 0.253 m on this run once the driver's racing line changed
+  const json& pose_only = slam["graph+no_landmark_edges"];
+  EXPECT_EQ(pose_only["loop_closures"].get<int>(), 1);
+  EXPECT_LT(pose_only["ate_rmse_m"].get<double>(), slam["odometry"]["ate_rmse_m"].get<double>());
+  EXPECT_GT(pose_only["map_rmse_m"].get<double>(), slam["graph"]["map_rmse_m"].get<double>());
+  // the preliminary list keeps candidates out of the filter, and says how many
+  EXPECT_GT(slam["ekf"]["backend_stats"]["preliminary_dropped"].get<double>(), 0.0);
+  EXPECT_EQ(slam["ekf+no_preliminary"]["backend_stats"]["preliminary_dropped"].get<double>(), 0.0);
+  EXPECT_GT(slam["ekf+no_preliminary"]["backend_stats"]["landmarks"].get<double>(),
+            slam["ekf"]["backend_stats"]["landmarks"].get<double>());
+  // the map error over distance is in metrics.json for every lane
+  EXPECT_GT(slam["odometry"]["map_error_over_distance"].size(), 10u);
 }
 
 TEST(SlamLanes, ShadowFiguresAreTheSameOnEveryRun) {

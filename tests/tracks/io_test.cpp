@@ -340,6 +340,27 @@ TEST(ReadTrack, EufsWithoutHeaderAsFsdsWritesIt) {
   EXPECT_EQ(track.right_lane, (std::vector<int>{2, 3}));
 }
 
+TEST(ReadTrack, ConesWhoseBasesWouldOverlapAreOneConeListedTwice) {
+  // a blue cone 0.12 m from another (their 0.228 m bases overlap) is a copy; one 0.25 m away
+  // stands beside it, and a yellow cone on the same spot is another cone
+  const std::string text =
+      "blue,0.0,2.0,0.0,0.0,0.0,0.0\n"
+      "blue,0.12,2.0,0.0,0.0,0.0,0.0\n"
+      "blue,5.0,2.0,0.0,0.0,0.0,0.0\n"
+      "blue,5.25,2.0,0.0,0.0,0.0,0.0\n"
+      "yellow,0.0,-2.0,0.0,0.0,0.0,0.0\n"
+      "yellow,5.0,-2.0,0.0,0.0,0.0,0.0\n"
+      "yellow,5.0,2.0,0.0,0.0,0.0,0.0\n";
+  const Track track = parse_track(text, TrackFormat::kEufsCsv, "overlap.csv");
+  EXPECT_EQ(track.count(ConeClass::kBlue), 3);
+  EXPECT_EQ(track.count(ConeClass::kYellow), 3);
+  ASSERT_EQ(count_warnings(track, "copy dropped"), 1);
+  EXPECT_EQ(count_warnings(track,
+                           "overlap.csv:2: repeats the blue cone at (0.000, 2.000) (0.12 m "
+                           "apart: their bases would overlap)"),
+            1);
+}
+
 TEST(ReadTrack, DetectsTheFormatFromTheContent) {
   TempDir dir;
   write_file(dir / "a.yml", "cones_left: [[0, 2], [5, 2]]\ncones_right: [[0, -2], [5, -2]]\n");
