@@ -40,7 +40,10 @@ core::Pose2 motion_over(const slam::frontend::SweepMotion& m, double dt) {
 
 PerceptionView perception_view(const Scenario& s) {
   PerceptionView v;
-  if (s.perception == "lidar" || s.perception == "fused") {
+  // a perception plug-in sees with the sensors it is given, the LiDAR first
+  const bool plugin_lidar = s.perception_plugin && s.perception_plugin->lidar;
+  const bool plugin_camera = s.perception_plugin && !s.perception_plugin->lidar;
+  if (s.perception == "lidar" || s.perception == "fused" || plugin_lidar) {
     // the farthest ground distance at which two rings still hit a small cone between 5 cm and
     // its top, from the mount's height (a level mount)
     const sensors::LidarConfig lidar = *sensors::lidar_preset(s.sensors.lidar_model);
@@ -62,7 +65,7 @@ PerceptionView perception_view(const Scenario& s) {
     v.fov_deg = 360.0;
     return v;
   }
-  if (s.perception == "stereo") {
+  if (s.perception == "stereo" || plugin_camera) {
     v.sensor_x_m = s.sensors.camera.mount_x_m;
     v.min_range_m = 2.0;
     v.max_range_m = 12.0;
@@ -80,12 +83,33 @@ PerceptionView perception_view(const Scenario& s) {
 PerceptionRunner::PerceptionRunner(const Scenario& s, const tracks::Track& track,
                                    const core::Pose3& lidar_mount)
     : track_(track), mode_(s.perception), tracker_(slam::frontend::TrackerConfig{}) {
+  lidar_xy_ = lidar_mount.position.head<2>();
+  lidar_mount_ = lidar_mount;
+  if (s.perception_plugin) {
+    // a plug-in in place of the detectors: given the sensors the scenario names, scored on
+    // what it delivers (against the cones around the LiDAR, or in the camera's view)
+    const PluginSpec& spec = *s.perception_plugin;
+    uses_lidar_ = spec.lidar;
+    uses_camera_ = spec.camera;
+    const std::unique_ptr<RunInfoStorage> run =
+        make_run_info(s, driver_vehicle(s.vehicle), core::Pose2{}, {});
+    plugin_ = make_plugin_perception(spec, run->info);
+    plugin_guard_ = std::make_unique<PluginGuard>(spec);
+    plugin_sensor_xy_ = spec.lidar ? lidar_xy_ : core::Vec2(s.sensors.camera.mount_x_m, 0.0);
+    plugin_half_fov_rad_ =
+        spec.lidar ? std::numbers::pi
+                   : 0.5 * s.sensors.camera.horizontal_fov_deg * std::numbers::pi / 180.0;
+    delivered_score_ =
+        std::make_unique<PerceptionScorer>(plugin_sensor_xy_, kScoreBandM, kScoreRangeM);
+    return;
+  }
   const bool lidar = mode_ == "lidar" || mode_ == "fused";
   const bool camera = mode_ == "stereo" || mode_ == "fused";
   if (!lidar && !camera)
     throw std::invalid_argument("perception: raw-data perception is lidar, stereo or fused, not " +
                                 mode_);
-  lidar_xy_ = lidar_mount.position.head<2>();
+  uses_lidar_ = lidar;
+  uses_camera_ = camera;
   if (lidar) {
     // the detector knows the beam pattern of the LiDAR model (not the scene)
     const sensors::LidarConfig lidar = *sensors::lidar_preset(s.sensors.lidar_model);
@@ -105,6 +129,11 @@ PerceptionRunner::PerceptionRunner(const Scenario& s, const tracks::Track& track
         std::make_unique<slam::frontend::StereoConeDetector>(slam::frontend::StereoDetectorConfig{});
   }
   if (lidar) delivered_score_ = std::make_unique<PerceptionScorer>(lidar_xy_, kScoreBandM, kScoreRangeM);
+}
+
+PerceptionRunner::~PerceptionRunner() {
+  // a plug-in whose call was left running is kept for good
+  if (plugin_guard_) keep_if_abandoned(*plugin_guard_, plugin_);
 }
 
 std::vector<TrueConeInView> PerceptionRunner::truth_in_view(
@@ -219,6 +248,71 @@ std::optional<DeliveredDetections> PerceptionRunner::on_stereo(
   // (what SLAM receives is labelled against every cone in the left image)
   out.labels.cone_id = delivered_score_->add_frame(tracked, in_left);
   out.observations = std::move(tracked);
+  out.capture_pose = true_pose;
+  return out;
+}
+
+core::ConeObservations PerceptionRunner::plugin_lidar(
+    const core::PointCloud& cloud, core::TimeUs end,
+    const slam::frontend::SweepMotion& motion) const {
+  std::vector<sdk::LidarPoint> points;
+  points.reserve(cloud.points.size());
+  for (const core::LidarPoint& p : cloud.points)
+    points.push_back({p.x, p.y, p.z, p.intensity, p.ring, 0, p.time_offset_s});
+  sdk::LidarSweep sweep;
+  sweep.stamp_us = cloud.stamp;
+  sweep.end_us = end;
+  sweep.points = {points.data(), points.size()};
+  const Eigen::Vector3d& m = lidar_mount_.position;
+  const Eigen::Quaterniond& q = lidar_mount_.orientation;
+  sweep.sensor_in_vehicle = {{m.x(), m.y(), m.z()}, {q.w(), q.x(), q.y(), q.z()}};
+  const sdk::ConeFrame frame = plugin_guard_->call("on_lidar", [&] {
+    return plugin_.object->on_lidar(sweep, {motion.speed_mps, motion.yaw_rate_rps});
+  });
+  core::ConeObservations out = from_sdk(frame);
+  for (const core::ConeObservation& o : out.cones) {
+    plugin_guard_->check_finite("a cone's x_m", o.position.x());
+    plugin_guard_->check_finite("a cone's y_m", o.position.y());
+  }
+  // a frame is in the vehicle frame at the sweep's end
+  if (out.stamp >= 0) out.stamp = end;
+  return out;
+}
+
+core::ConeObservations PerceptionRunner::plugin_stereo(const core::StereoFrame& f) const {
+  auto to_pose3 = [](const core::Pose3& p) {
+    return sdk::Pose3{{p.position.x(), p.position.y(), p.position.z()},
+                      {p.orientation.w(), p.orientation.x(), p.orientation.y(), p.orientation.z()}};
+  };
+  sdk::StereoFrame frame;
+  frame.stamp_us = f.stamp;
+  frame.left = {f.left.width_px, f.left.height_px, f.left.rgb.data()};
+  frame.right = {f.right.width_px, f.right.height_px, f.right.rgb.data()};
+  const core::CameraIntrinsics& k = f.intrinsics;
+  frame.intrinsics = {k.width_px, k.height_px, k.fx, k.fy, k.cx, k.cy};
+  frame.left_in_vehicle = to_pose3(f.left_in_vehicle);
+  frame.right_in_vehicle = to_pose3(f.right_in_vehicle);
+  frame.baseline_m = f.baseline_m;
+  const sdk::ConeFrame cones = plugin_guard_->call("on_stereo", [&] {
+    return plugin_.object->on_stereo(frame, {motion_.speed_mps, motion_.yaw_rate_rps});
+  });
+  core::ConeObservations out = from_sdk(cones);
+  for (const core::ConeObservation& o : out.cones) {
+    plugin_guard_->check_finite("a cone's x_m", o.position.x());
+    plugin_guard_->check_finite("a cone's y_m", o.position.y());
+  }
+  if (out.stamp >= 0) out.stamp = f.stamp;
+  return out;
+}
+
+std::optional<DeliveredDetections> PerceptionRunner::on_plugin_frame(
+    core::ConeObservations frame, const core::Pose2& true_pose,
+    const std::function<bool(int)>& is_knocked) {
+  if (frame.stamp < 0) return std::nullopt;
+  const auto truth = truth_in_view(true_pose, plugin_sensor_xy_, plugin_half_fov_rad_, is_knocked);
+  DeliveredDetections out;
+  out.labels.cone_id = delivered_score_->add_frame(frame, truth);
+  out.observations = std::move(frame);
   out.capture_pose = true_pose;
   return out;
 }

@@ -13,6 +13,7 @@
 
 #include "core/measurements.hpp"
 #include "sensors/lidar.hpp"
+#include "sim/autonomy.hpp"
 #include "sim/evaluation.hpp"
 #include "sim/scenario.hpp"
 #include "slam/frontend/cone_tracker.hpp"
@@ -58,8 +59,24 @@ class PerceptionRunner {
   PerceptionRunner(const Scenario& scenario, const tracks::Track& track,
                    const core::Pose3& lidar_mount);
 
-  bool uses_lidar() const { return lidar_detector_ != nullptr; }
-  bool uses_camera() const { return stereo_detector_ != nullptr; }
+  bool uses_lidar() const { return uses_lidar_; }
+  bool uses_camera() const { return uses_camera_; }
+  /// True for a perception plug-in (`autonomy.perception: plugin:PATH`): it takes the place of
+  /// the detectors, the fusion and the tracker.
+  bool is_plugin() const { return plugin_.object != nullptr; }
+
+  /// The plug-in's cones of one sweep (points in the sensor frame), in the vehicle frame at
+  /// `end` (the sweep's end); stamp -1 when it delivers none. May run on the sweep's worker
+  /// thread. Throws PluginFailure.
+  core::ConeObservations plugin_lidar(const core::PointCloud& cloud, core::TimeUs end,
+                                      const slam::frontend::SweepMotion& motion) const;
+  /// The plug-in's cones of one stereo pair; stamp -1 for none. Throws PluginFailure.
+  core::ConeObservations plugin_stereo(const core::StereoFrame& frame) const;
+  /// A plug-in's frame scored against the true cones around the sensor (the LiDAR's, or the
+  /// camera's field of view) and labelled by the match; nullopt for no frame.
+  std::optional<DeliveredDetections> on_plugin_frame(core::ConeObservations frame,
+                                                     const core::Pose2& true_pose,
+                                                     const std::function<bool(int)>& is_knocked);
   /// The LiDAR detector (const: it may run on the sweep's worker thread); null when unused.
   const slam::frontend::LidarConeDetector* lidar_detector() const { return lidar_detector_.get(); }
   /// The stereo detector; null when unused.
@@ -89,6 +106,8 @@ class PerceptionRunner {
   /// figures under `lidar` and `stereo` when both run.
   nlohmann::json metrics() const;
 
+  ~PerceptionRunner();
+
   /// The range-band figure (recall, precision, colour, RMSE per 5 m band) as a PNG.
   void write_plot(const std::filesystem::path& png) const;
 
@@ -102,6 +121,14 @@ class PerceptionRunner {
 
   const tracks::Track& track_;
   std::string mode_;
+  bool uses_lidar_ = false;
+  bool uses_camera_ = false;
+  // a perception plug-in, under its guard, and where its frames are scored from
+  PluginInstance<sdk::Perception> plugin_;
+  std::unique_ptr<PluginGuard> plugin_guard_;
+  core::Pose3 lidar_mount_;
+  core::Vec2 plugin_sensor_xy_ = core::Vec2::Zero();
+  double plugin_half_fov_rad_ = 0.0;
   std::unique_ptr<slam::frontend::LidarConeDetector> lidar_detector_;
   std::unique_ptr<slam::frontend::StereoConeDetector> stereo_detector_;
   slam::frontend::FusionConfig fusion_;

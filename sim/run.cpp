@@ -12,6 +12,7 @@
 #include "control/racing_line.hpp"
 #include "core/error.hpp"
 #include "laptime/qss.hpp"
+#include "sim/autonomy.hpp"
 #include "sim/lap_time_report.hpp"
 #include "sim/report.hpp"
 #include "sim/slam_runner.hpp"
@@ -129,21 +130,6 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
   return failures;
 }
 
-// what the driver knows of the car: its geometry and its envelope at full measured grip
-control::VehicleGeometry driver_vehicle(const vehicle_models::VehicleParams& vp) {
-  control::VehicleGeometry g;
-  g.wheelbase_m = vp.wheelbase_m;
-  g.max_steer_rad = vp.max_steer_rad;
-  g.max_steer_rate_rps = vp.max_steer_rate_rps;
-  g.rear_axle_to_front_m = vp.front_overhang_from_rear_axle_m;
-  g.rear_axle_to_back_m = vp.length_m - vp.front_overhang_from_rear_axle_m;
-  g.width_m = vp.width_m;
-  g.envelope = vehicle_models::PerformanceEnvelope::of(vp, 1.0);
-  // the yaw gain table the driver carries is the default car's; any other car is measured
-  if (!(vp == vehicle_models::VehicleParams{})) g.yaw_gain = measure_yaw_gain(vp);
-  return g;
-}
-
 // the referee's events for metrics.json: kind, time, lap, the car's pose, reason, penalty, and
 // the cone or the wheels
 nlohmann::json events_json(const std::vector<RefereeEvent>& events) {
@@ -226,6 +212,21 @@ std::string acceleration_problem(const Scenario& s, const tracks::Track& track,
 }
 
 }  // namespace
+
+// what the driver knows of the car: its geometry and its envelope at full measured grip
+control::VehicleGeometry driver_vehicle(const vehicle_models::VehicleParams& vp) {
+  control::VehicleGeometry g;
+  g.wheelbase_m = vp.wheelbase_m;
+  g.max_steer_rad = vp.max_steer_rad;
+  g.max_steer_rate_rps = vp.max_steer_rate_rps;
+  g.rear_axle_to_front_m = vp.front_overhang_from_rear_axle_m;
+  g.rear_axle_to_back_m = vp.length_m - vp.front_overhang_from_rear_axle_m;
+  g.width_m = vp.width_m;
+  g.envelope = vehicle_models::PerformanceEnvelope::of(vp, 1.0);
+  // the yaw gain table the driver carries is the default car's; any other car is measured
+  if (!(vp == vehicle_models::VehicleParams{})) g.yaw_gain = measure_yaw_gain(vp);
+  return g;
+}
 
 std::string drivability_problem(const Scenario& s, const tracks::Track& track) {
   // a cone under the car where it starts is hit before it moves
@@ -321,12 +322,32 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   SensorRig rig(s, track, car, options.dump, options.out_dir);
   // every perception but ground truth delivers frames with noise and latency
   const bool noisy_perception = s.perception != "ground_truth";
+  // the stack: every driver, the reference one included, runs through the SDK's interface; a
+  // plug-in that fails ends the run with a DNF naming it
+  std::string dnf_override;
+  const control::VehicleGeometry geometry = driver_vehicle(vp);
+  const std::unique_ptr<RunInfoStorage> run_info =
+      make_run_info(s, geometry, rear_axle_start, prior_map);
   std::unique_ptr<SlamRunner> slam;
-  if (s.slam != "none") slam = std::make_unique<SlamRunner>(s, track, car);
+  std::unique_ptr<sdk::Driver> driver;
+  try {
+    if (s.slam != "none") slam = std::make_unique<SlamRunner>(s, track, car);
+    if (options.make_driver)
+      driver = options.make_driver(run_info->info);
+    else if (s.driver_plugin)
+      driver = std::make_unique<GuardedDriver>(
+          *s.driver_plugin, make_plugin_driver(*s.driver_plugin, run_info->info));
+  } catch (const PluginFailure& e) {
+    dnf_override = e.what();
+  }
+  if (!driver) driver = std::make_unique<ReferenceDriver>(s.event, s.driver, geometry, prior_map);
   core::Pose2 driving_pose = car.truth().pose;
   core::ConeObservations latest_detections;
   core::Pose2 latest_capture_pose;
-  control::Driver driver(s.event, s.driver, driver_vehicle(vp), prior_map);
+  // the driver's input in the SDK's types (buffers reused from tick to tick)
+  std::vector<sdk::ConeObservation> observation_buffer;
+  std::vector<sdk::MapCone> map_buffer;
+  sdk::DriverStatus driver_status = driver->status();
 
   // the schedule on the integer clock
   const TimeUs step_us = core::from_seconds(car.timestep_s());
@@ -353,9 +374,13 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   TimeUs t = 0;
   core::VehicleCommand command;
   auto last_progress = wall_start;
-  std::string dnf_override;
-  while (!referee.finished()) {
+  while (dnf_override.empty() && !referee.finished()) {
     if (t % driver_period_us == 0) {
+      // a perception plug-in that failed on a frame collected by now ends the run
+      if (!rig.failure().empty()) {
+        dnf_override = rig.failure();
+        break;
+      }
       // perceive, estimate, drive
       const VehicleTruth truth = car.truth();
       if (!std::isfinite(truth.pose.x) || !std::isfinite(truth.pose.y)) {
@@ -372,6 +397,10 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
         // SLAM latency); the driver sees only its estimate
         slam->catch_up(t);
         while (auto d = rig.take_detections(t)) slam->process(*d, t);
+        if (!slam->failure().empty()) {
+          dnf_override = slam->failure();
+          break;
+        }
         estimate = slam->estimate_now(t, &odometry_motion);
         obs = slam->observations_at(estimate.pose);
       } else {
@@ -409,7 +438,18 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       // perception de-skews and tracks with the odometry's motion (the truth without SLAM)
       rig.set_motion(slam ? odometry_motion
                           : slam::frontend::SweepMotion{estimate.speed_mps, estimate.yaw_rate_rps});
-      command = driver.update({estimate, obs});
+      if (options.on_tick) options.on_tick(t, referee.result());
+      try {
+        sdk::DriverInput input;
+        input.now_us = t;
+        input.estimate = to_sdk(estimate, map_buffer);
+        input.observations = to_sdk(obs, observation_buffer);
+        command = from_sdk(driver->update(input));
+        driver_status = driver->status();
+      } catch (const PluginFailure& e) {
+        dnf_override = e.what();
+        break;
+      }
       // before the go signal the car is held at the start
       if (t < start_delay_us) command = {0.0, 0.0, true};
 
@@ -418,7 +458,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
         last_progress = clock::now();
         const double wall = std::chrono::duration<double>(last_progress - wall_start).count();
         options.on_progress({core::to_seconds(t), core::to_seconds(t) / std::max(wall, 1e-9),
-                             referee.laps(), laps_target, driver.status().state});
+                             referee.laps(), laps_target, driver_status.state});
       }
     }
     if (t % trajectory_period_us == 0) {
@@ -477,14 +517,14 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     result.referee.events.push_back(e);
   }
   // the driver's own word on why it could not go on
-  if (!result.referee.completed && !driver.status().problem.empty())
-    result.referee.dnf_reason += " (driver: " + driver.status().problem + ")";
+  if (!result.referee.completed && *driver_status.problem)
+    result.referee.dnf_reason += std::string(" (driver: ") + driver_status.problem + ")";
   const nlohmann::json slam_metrics = slam ? slam->metrics() : nlohmann::json();
   result.failures = check_pass(s.pass, result.referee, slam_metrics);
   result.passed = result.failures.empty();
   result.sim_time_s = core::to_seconds(t);
   result.wall_time_s = wall_s;
-  result.driver_laps = driver.status().laps_counted;
+  result.driver_laps = driver_status.laps_counted;
 
   // metrics.json (every key in docs/metrics.md)
   const RefereeResult& r = result.referee;
@@ -530,6 +570,15 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
          round_to(rig.stats().stereo_detect_ms_total / std::max(1, rig.stats().camera_frames),
                   1e-3)}}},
   };
+  // the plug-ins in the loop, by name (a run of the built-in stack has no such key)
+  if (s.perception_plugin || s.slam_plugin || s.driver_plugin) {
+    auto name = [](const std::optional<PluginSpec>& p, const std::string& builtin) {
+      return p ? "plugin:" + p->name() : builtin;
+    };
+    m["autonomy"] = {{"perception", name(s.perception_plugin, s.perception)},
+                     {"slam", s.slam},
+                     {"driver", name(s.driver_plugin, "reference")}};
+  }
   // the lap-time bound at the car's full measured grip beside the lap times
   laptime::LapTimeOptions bound_options;
   bound_options.event = s.event;

@@ -5,11 +5,11 @@
 #include <chrono>
 #include <filesystem>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
+#include "conesim/sdk/interfaces.hpp"
 #include "core/autonomy_types.hpp"
 #include "sim/referee.hpp"
 #include "sim/scenario.hpp"
@@ -37,6 +37,13 @@ struct RunOptions {
   bool plot = true;
   /// Sensor data to write under images/ (dumping a sensor switches it on).
   DumpOptions dump;
+  /// A driver in place of the scenario's, made with the run's RunInfo (the Python module's
+  /// lock-step driver); unset: the scenario's. It is called like any driver, and a
+  /// PluginFailure it raises ends the run with a DNF.
+  std::function<std::unique_ptr<sdk::Driver>(const sdk::RunInfo&)> make_driver;
+  /// Called at every driver tick before the driver, with the sim time and the referee's verdict
+  /// so far.
+  std::function<void(core::TimeUs, const RefereeResult&)> on_tick;
 };
 
 /// The outcome of a run.

@@ -647,6 +647,145 @@ std::string run_name_error(const std::string& name) {
   return {};
 }
 
+// a YAML block flattened to "key.sub" / "list.0" -> scalar text, in the file's order
+void flatten_config(const YAML::Node& n, const std::string& prefix,
+                    std::vector<std::pair<std::string, std::string>>& out) {
+  if (n.IsMap()) {
+    for (const auto& item : n)
+      flatten_config(item.second,
+                     prefix.empty() ? item.first.Scalar() : prefix + "." + item.first.Scalar(),
+                     out);
+  } else if (n.IsSequence()) {
+    for (size_t i = 0; i < n.size(); ++i)
+      flatten_config(n[i], prefix + "." + std::to_string(i), out);
+  } else if (n.IsScalar()) {
+    out.emplace_back(prefix, n.Scalar());
+  }
+}
+
+// one entry of the autonomy: block: a built-in name, `plugin:PATH`, or {plugin: PATH, config:
+// {...}, time_budget_ms: N, sensors: [lidar, camera]} (the last for a perception); returns the
+// built-in name, or nullopt with `spec` filled for a plug-in
+std::optional<std::string> read_autonomy_entry(const YAML::Node& n, const Where& w,
+                                               const std::string& key, PluginKind kind,
+                                               const fs::path& file,
+                                               std::optional<PluginSpec>& spec) {
+  const std::string plugin_prefix = "plugin:";
+  PluginSpec p;
+  p.kind = kind;
+  int line = Where::line(n);
+  if (n.IsScalar()) {
+    const std::string v = n.Scalar();
+    if (!v.starts_with(plugin_prefix)) {
+      spec.reset();
+      return v;
+    }
+    p.file = resolve(file, v.substr(plugin_prefix.size()));
+  } else {
+    const Where e{w.context, w.key(key)};
+    bool has_file = false;
+    read_section(
+        n, e,
+        {{"plugin",
+          [&](const YAML::Node& v) {
+            p.file = resolve(file, read_string(v, e, "plugin"));
+            has_file = true;
+            line = Where::line(v);
+          }},
+         {"config",
+          [&](const YAML::Node& v) {
+            if (!v.IsMap() && !v.IsNull())
+              e.fail(v, "config", "expected a map of the plug-in's own keys, got " + describe(v));
+            flatten_config(v, "", p.config);
+            YAML::Emitter out;
+            out << YAML::Flow << v;
+            p.config_yaml = v.IsNull() ? "{}" : out.c_str();
+          }},
+         {"time_budget_ms",
+          [&](const YAML::Node& v) {
+            p.time_budget_ms = read_number(v, e, "time_budget_ms");
+            if (!(p.time_budget_ms > 0.0))
+              e.fail(v, "time_budget_ms", "expected a time > 0 ms, got " + describe(v));
+          }},
+         {"sensors", [&](const YAML::Node& v) {
+            if (kind != PluginKind::kPerception)
+              e.fail(v, "sensors", "only a perception plug-in is given sensors");
+            if (!v.IsSequence() || v.size() == 0)
+              e.fail(v, "sensors", "expected a list of lidar and camera, got " + describe(v));
+            p.lidar = p.camera = false;
+            for (const YAML::Node& item : v) {
+              const std::string name = read_string(item, e, "sensors");
+              if (name == "lidar")
+                p.lidar = true;
+              else if (name == "camera")
+                p.camera = true;
+              else
+                e.fail(item, "sensors", "expected lidar or camera, got '" + name + "'");
+            }
+          }}});
+    if (!has_file) w.fail(n, key, "expected plugin: PATH of a shared library");
+  }
+  // the library is opened and checked now: bad input stops before anything runs
+  try {
+    p.library = PluginLibrary::open(p.file);
+  } catch (const std::exception& ex) {
+    w.context->fail(w.key(key), ex.what(), line);
+  }
+  const sdk::PluginInfo& info = p.library->info();
+  const bool offered = kind == PluginKind::kPerception ? info.create_perception != nullptr
+                       : kind == PluginKind::kSlam     ? info.create_slam != nullptr
+                                                       : info.create_driver != nullptr;
+  if (!offered)
+    w.context->fail(w.key(key),
+                    p.file.string() + ": the plug-in '" + info.name + "' offers no " + key +
+                        " (its CONESIM_PLUGIN names none)",
+                    line);
+  spec = std::move(p);
+  return std::nullopt;
+}
+
+// the perception and SLAM autonomy: chose (applied over the top-level keys once all are read)
+struct AutonomyChoice {
+  std::optional<std::string> perception;
+  std::optional<std::string> slam;
+};
+
+// autonomy: {perception: ..., slam: ..., driver: ...}: the stack, built-in or plug-ins
+void read_autonomy(const YAML::Node& n, Context& context, const fs::path& file, Scenario& s,
+                   AutonomyChoice& choice) {
+  const Where w{&context, "autonomy"};
+  read_section(
+      n, w,
+      {{"perception",
+        [&](const YAML::Node& v) {
+          const auto name = read_autonomy_entry(v, w, "perception", PluginKind::kPerception, file,
+                                                s.perception_plugin);
+          choice.perception = name.value_or("plugin");
+          if (name && *name != "ground_truth" && *name != "cone_sensor" && *name != "lidar" &&
+              *name != "stereo" && *name != "fused")
+            w.fail(
+                v, "perception",
+                "expected ground_truth, cone_sensor, lidar, stereo, fused or plugin:PATH, got '" +
+                    *name + "'");
+        }},
+       {"slam",
+        [&](const YAML::Node& v) {
+          const auto name =
+              read_autonomy_entry(v, w, "slam", PluginKind::kSlam, file, s.slam_plugin);
+          if (name && *name != "none" && !slam::is_backend(*name))
+            w.fail(v, "slam",
+                   "expected none, a SLAM back-end (" + slam::backend_list() +
+                       ") or plugin:PATH, got '" + *name + "'");
+          choice.slam = name ? *name : "plugin:" + s.slam_plugin->name();
+        }},
+       {"driver", [&](const YAML::Node& v) {
+          const auto name =
+              read_autonomy_entry(v, w, "driver", PluginKind::kDriver, file, s.driver_plugin);
+          if (name && *name != "reference")
+            w.fail(v, "driver", "expected reference or plugin:PATH, got '" + *name + "'");
+        }}});
+}
+
 }  // namespace
 
 vehicle_models::VehicleParams load_vehicle(const fs::path& file) {
@@ -676,6 +815,8 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   // sensors switched off explicitly, which a raw-data perception contradicts
   bool lidar_disabled = false;
   bool camera_disabled = false;
+  // the stack chosen under autonomy: (over the top-level perception: and slam:)
+  AutonomyChoice autonomy;
 
   // top-level keys
   std::vector<Field> fields = {
@@ -739,6 +880,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                         s.perception + "'");
        }},
       {"slam", [&](const YAML::Node& n) { read_slam(n, top, context, s); }},
+      {"autonomy", [&](const YAML::Node& n) { read_autonomy(n, context, file, s, autonomy); }},
       {"driver",
        [&](const YAML::Node& n) {
          const Where w{&context, "driver"};
@@ -999,6 +1141,19 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
     context.fail("slam.graph.gate_chi2", "expected a chi-square gate > 0");
   if (!(s.slam_settings.graph.association.track_memory_frames >= 1.0))
     context.fail("slam.graph.track_memory_frames", "expected >= 1 frame");
+  // autonomy: chooses over the top-level perception: and slam: (a shipped scenario's stack with
+  // one part swapped: --set autonomy.slam=plugin:PATH)
+  if (autonomy.perception) s.perception = *autonomy.perception;
+  if (autonomy.slam) s.slam = *autonomy.slam;
+  if (s.slam_plugin && !s.slam_shadows.empty() &&
+      std::any_of(s.slam_shadows.begin(), s.slam_shadows.end(),
+                  [&](const SlamShadow& sh) { return sh.lane_name() == s.slam; }))
+    context.fail("slam.shadow", "a shadow lane has the plug-in's name");
+  // a perception plug-in switches on the sensors it is given
+  if (s.perception_plugin) {
+    s.sensors.lidar_enabled = s.sensors.lidar_enabled || s.perception_plugin->lidar;
+    s.sensors.camera_enabled = s.sensors.camera_enabled || s.perception_plugin->camera;
+  }
   if (s.slam != "none" && s.perception == "ground_truth")
     context.fail("slam",
                  "SLAM needs observations with noise: set perception to "

@@ -14,6 +14,7 @@
 #include "sensors/cone_sensor.hpp"
 #include "sensors/stereo_camera.hpp"
 #include "sensors/vehicle_sensors.hpp"
+#include "sim/autonomy.hpp"
 #include "sim/referee.hpp"
 #include "slam/factory.hpp"
 #include "tracks/generator.hpp"
@@ -140,6 +141,12 @@ struct Scenario {
   /// time). With more, the update runs on a thread of its own while the car drives on.
   double slam_latency_s = 0.0;
   control::DriverParams driver;
+  /// Plug-ins of the stack (`autonomy: {perception|slam|driver: plugin:PATH}`); unset for the
+  /// built-in one. With a perception plug-in `perception` is "plugin"; with a SLAM plug-in
+  /// `slam` is "plugin:NAME".
+  std::optional<PluginSpec> perception_plugin;
+  std::optional<PluginSpec> slam_plugin;
+  std::optional<PluginSpec> driver_plugin;
   SensorSettings sensors;
   RefereeParams referee;
   PassCriteria pass;

@@ -181,7 +181,7 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
     with_depth_ = s.sensors.camera_depth;
     camera_latency_us_ = core::from_seconds(s.sensors.camera_latency_s);
   }
-  if (raw_lidar || raw_camera)
+  if (raw_lidar || raw_camera || s.perception_plugin)
     perception_ = std::make_unique<PerceptionRunner>(
         s, track, lidar_ ? lidar_->config().mount : core::Pose3{});
 
@@ -279,19 +279,41 @@ void SensorRig::end_sweep() {
   // estimates now
   const slam::frontend::LidarConeDetector* detector =
       perception_ ? perception_->lidar_detector() : nullptr;
+  // or a perception plug-in in its place: on the worker when it has only the LiDAR; one with
+  // the camera too is called here at collection, in order with its stereo calls (determinism)
+  const bool plugin_lidar = perception_ && perception_->is_plugin() && perception_->uses_lidar();
+  const PerceptionRunner* plugin =
+      plugin_lidar && !perception_->uses_camera() ? perception_.get() : nullptr;
   const slam::frontend::SweepMotion motion =
       perception_ ? perception_->motion() : slam::frontend::SweepMotion{};
-  pending_scan_ = worker_->post([this, sweep = casting_, start, begin, columns, detector, motion,
-                                 window = pose_window(lidar_->column_time(start, begin), end)] {
-    sweep->cast(*lidar_, lidar_rng_, start, begin, columns, window);
-    SweepResult r{std::move(sweep->scan), std::nullopt, sweep->cast_ms, 0.0};
-    if (detector) {
-      const auto t0 = clock::now();
-      r.detections = detector->detect(r.scan.cloud, motion);
-      r.detect_ms = ms_between(t0, clock::now());
-    }
-    return r;
-  });
+  pending_scan_ =
+      worker_->post([this, sweep = casting_, start, begin, columns, detector, plugin, motion, end,
+                     window = pose_window(lidar_->column_time(start, begin), end)] {
+        sweep->cast(*lidar_, lidar_rng_, start, begin, columns, window);
+        SweepResult r{std::move(sweep->scan),
+                      std::nullopt,
+                      sweep->cast_ms,
+                      0.0,
+                      std::nullopt,
+                      {},
+                      end,
+                      motion};
+        if (detector) {
+          const auto t0 = clock::now();
+          r.detections = detector->detect(r.scan.cloud, motion);
+          r.detect_ms = ms_between(t0, clock::now());
+        }
+        if (plugin) {
+          const auto t0 = clock::now();
+          try {
+            r.plugin_frame = plugin->plugin_lidar(r.scan.cloud, end, motion);
+          } catch (const PluginFailure& e) {
+            r.plugin_failure = e.what();
+          }
+          r.detect_ms = ms_between(t0, clock::now());
+        }
+        return r;
+      });
 
   // the next sweep
   sweep_start_ += lidar_->config().sweep_period_us();
@@ -311,12 +333,35 @@ void SensorRig::restart_sweep() {
 void SensorRig::collect_sweep() {
   for (std::future<void>& part : pending_parts_) part.get();
   pending_parts_.clear();
-  const SweepResult result = pending_scan_.get();
+  SweepResult result = pending_scan_.get();
   const sensors::LidarScan& scan = result.scan;
   stats_.lidar_ms_total += result.cast_ms;
   const int index = stats_.lidar_scans++;
   stats_.lidar_points += static_cast<int64_t>(scan.cloud.points.size());
 
+  // a plug-in with the camera too sees the sweep now, between its stereo frames
+  if (perception_ && perception_->is_plugin() && perception_->uses_lidar() &&
+      perception_->uses_camera()) {
+    const auto t0 = clock::now();
+    try {
+      result.plugin_frame = perception_->plugin_lidar(scan.cloud, result.end_us, result.motion);
+    } catch (const PluginFailure& e) {
+      result.plugin_failure = e.what();
+    }
+    result.detect_ms = ms_between(t0, clock::now());
+  }
+  // a plug-in's cones likewise, scored on what it delivers; its failure ends the run
+  if (!result.plugin_failure.empty() && failure_.empty()) failure_ = result.plugin_failure;
+  if (result.plugin_frame && referee_) {
+    stats_.lidar_detect_ms_total += result.detect_ms;
+    const Referee& referee = *referee_;
+    auto d = perception_->on_plugin_frame(
+        *result.plugin_frame,
+        poses_.at(result.plugin_frame->stamp >= 0 ? result.plugin_frame->stamp : poses_.newest())
+            .planar(),
+        [&referee](int id) { return referee.is_knocked(id); });
+    if (d) cone_queue_.push_back({pending_delivery_us_, std::move(*d)});
+  }
   // the sweep's cones go to SLAM once the perception latency has passed
   if (result.detections && referee_) {
     stats_.lidar_detect_ms_total += result.detect_ms;
@@ -403,7 +448,24 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
 
   // the stereo cone detector on the pair; its cones reach SLAM after the latency
   std::optional<slam::frontend::StereoDetections> detections;
-  if (perception_ && perception_->uses_camera()) {
+  if (perception_ && perception_->is_plugin() && perception_->uses_camera()) {
+    // a perception plug-in: its cones of the pair reach SLAM after the camera latency, unless
+    // it also takes the LiDAR (then its sweeps deliver, and it fuses the pairs itself)
+    const auto t0 = clock::now();
+    try {
+      core::ConeObservations cones = perception_->plugin_stereo(frame_);
+      stats_.stereo_detect_ms_total +=
+          std::chrono::duration<double, std::milli>(clock::now() - t0).count();
+      if (!perception_->uses_lidar()) {
+        auto d =
+            perception_->on_plugin_frame(std::move(cones), car.truth().pose,
+                                         [&referee](int id) { return referee.is_knocked(id); });
+        if (d) cone_queue_.push_back({t + camera_latency_us_, std::move(*d)});
+      }
+    } catch (const PluginFailure& e) {
+      if (failure_.empty()) failure_ = e.what();
+    }
+  } else if (perception_ && perception_->uses_camera()) {
     const auto t0 = clock::now();
     detections = perception_->stereo_detector()->detect(frame_);
     stats_.stereo_detect_ms_total +=

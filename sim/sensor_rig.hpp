@@ -84,6 +84,10 @@ class SensorRig {
   /// Counters; call finish() first so that the sweep in flight is counted.
   const SensorRigStats& stats() const { return stats_; }
 
+  /// Why a perception plug-in cannot go on (it threw, returned NaN or overran its budget on a
+  /// frame collected by now), naming it; empty while all is well.
+  const std::string& failure() const { return failure_; }
+
   /// Waits for the LiDAR sweep still computing on the second core and dumps it.
   void finish();
 
@@ -133,6 +137,12 @@ class SensorRig {
     std::optional<slam::frontend::LidarDetections> detections;
     double cast_ms = 0.0;
     double detect_ms = 0.0;
+    // a perception plug-in's cones, or why it failed
+    std::optional<core::ConeObservations> plugin_frame;
+    std::string plugin_failure;
+    // the sweep's end and the autonomy's motion then (a plug-in called at collection)
+    core::TimeUs end_us = 0;
+    slam::frontend::SweepMotion motion;
   };
   std::future<SweepResult> pending_scan_;
   std::vector<std::future<void>> pending_parts_;
@@ -148,6 +158,7 @@ class SensorRig {
   core::StereoLabels frame_labels_;
 
   size_t knocked_seen_ = 0;
+  std::string failure_;
   SensorRigStats stats_;
   // the LiDAR's thread; last member: its jobs use the members above, so it stops before them
   std::unique_ptr<WorkerThread> worker_;

@@ -109,6 +109,8 @@ struct SlamRunner::UpdateResult {
   double wall_ms = 0.0;
   double cpu_ms = 0.0;
   double association_us = -1.0;
+  // a plug-in's failure in this update (it threw or returned NaN): ends the run
+  std::string failure;
 };
 
 // one back-end with its scorer and the updates in flight
@@ -138,13 +140,20 @@ struct SlamRunner::Lane {
     UpdateResult r;
     const auto start = clock::now();
     const double cpu_start = core::thread_cpu_ms();
-    backend->process(input);
-    r.cpu_ms = core::thread_cpu_ms() - cpu_start;
-    r.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - start).count();
-    r.estimate = backend->estimate();
-    r.associations = backend->last_associations();
-    r.loop_closures = backend->loop_closures();
-    r.association_us = backend->last_association_us();
+    try {
+      backend->process(input);
+      r.cpu_ms = core::thread_cpu_ms() - cpu_start;
+      r.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - start).count();
+      r.estimate = backend->estimate();
+      r.associations = backend->last_associations();
+      r.loop_closures = backend->loop_closures();
+      r.association_us = backend->last_association_us();
+    } catch (const PluginFailure& e) {
+      // the estimate before it stands; the run ends at the tick that takes this update in
+      r.failure = e.what();
+      r.estimate = last_estimate;
+      r.associations.clear();
+    }
     return r;
   }
 
@@ -191,7 +200,16 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
       continue;
     const slam::BackendSettings settings =
         lane_settings(s, specs[k].lane, specs[k].backend, specs[k].method, specs[k].ablations);
-    auto backend = slam::make_backend(specs[k].backend, settings);
+    // the driving lane from a plug-in (autonomy.slam), or a built-in back-end
+    std::unique_ptr<slam::Backend> backend;
+    if (k == 0 && s.slam_plugin) {
+      const std::unique_ptr<RunInfoStorage> run =
+          make_run_info(s, driver_vehicle(s.vehicle), start_pose_, {});
+      backend = std::make_unique<PluginBackend>(*s.slam_plugin,
+                                                make_plugin_slam(*s.slam_plugin, run->info));
+    } else {
+      backend = slam::make_backend(specs[k].backend, settings);
+    }
     auto lane = std::make_unique<Lane>(specs[k].lane, k == 0, std::move(backend), track, view);
     lane->ablations = lane_ablations(specs[k].backend, settings);
     // the association it runs: its own, the scenario's for the back-end, or the default
@@ -326,6 +344,7 @@ void SlamRunner::finish() {
 }
 
 void SlamRunner::take_in(Lane& lane, DeliveredDetections frame, UpdateResult update) {
+  if (lane.driving && failure_.empty()) failure_ = update.failure;
   lane.last_estimate = update.estimate;
   if (lane.driving) {
     last_estimate_ = update.estimate;

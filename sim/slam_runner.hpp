@@ -97,6 +97,10 @@ class SlamRunner {
   /// and slam_lanes.png with every lane's map error over distance on one plot.
   void write_report(const std::filesystem::path& dir) const;
 
+  /// Why a plug-in back-end cannot go on (it threw or returned NaN in an update taken in by
+  /// now), naming it; empty while all is well. The run ends with this as its DNF reason.
+  const std::string& failure() const { return failure_; }
+
   /// The driving lane's scorer (tests).
   const SlamScorer& scorer() const;
 
@@ -133,6 +137,7 @@ class SlamRunner {
   core::Estimate last_estimate_;
   core::ConeObservations last_observations_;
   core::Pose2 last_frame_pose_;
+  std::string failure_;
   // the last tick catch_up() ran at: an update processed ahead for a later tick never took
   // effect
   core::TimeUs last_tick_us_ = -1;

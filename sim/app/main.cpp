@@ -299,6 +299,11 @@ void add_run_command(CLI::App& app, int& status) {
             "not drivable by this car: " + why + " (driver.check_drivable=false runs it anyway)");
     }
 
+    // each plug-in is made once with its configuration: one that refuses it stops here
+    if (s.driver_plugin || s.slam_plugin || s.perception_plugin)
+      sim::check_plugins(s,
+                         sim::make_run_info(s, sim::driver_vehicle(s.vehicle), t.start, {})->info);
+
     sim::RunOptions options;
     options.plot = !*no_plot;
     options.dump.sensors = {dump->begin(), dump->end()};
