@@ -495,11 +495,13 @@ void add_bench_commands(CLI::App& app) {
   bench->require_subcommand(1);
   auto* cmd = bench->add_subcommand(
       "sensors", "LiDAR Mrays/s and ms per scan, ms per stereo pair, closed-loop real-time factor");
-  auto repeats = std::make_shared<int>(5);
+  auto repeats = std::make_shared<int>(3);
   auto no_loop = std::make_shared<bool>(false);
-  cmd->add_option("--repeats", *repeats, "Repetitions (scaled per figure)")
+  cmd->add_option(
+         "--repeats", *repeats,
+         "Repetitions: closed-loop runs per figure (their median); sensor figures take more")
       ->check(CLI::Range(1, 1000));
-  cmd->add_flag("--no-closed-loop", *no_loop, "Skip the two trackdrive runs");
+  cmd->add_flag("--no-closed-loop", *no_loop, "Skip the closed-loop runs");
   cmd->callback(
       [=] { std::cout << conesim::sim::bench_sensors(*repeats, !*no_loop).dump(2) << "\n"; });
 }
