@@ -6,7 +6,7 @@
 //
 // config: where the perception sees cones (sensor_x_m, min_range_m, max_range_m, fov_deg: the
 // view conesim gives the built-in back-end; the defaults are the cone sensor's) and the graph's
-// own keys window_poses, confirm_sightings, tentative_max_travel_m, global_only,
+// own keys (default: as a scenario's slam.graph) window_poses, confirm_sightings, tentative_max_travel_m, global_only,
 // landmark_edges, icr_sigma_m, localise_after_loop_closure (slam.graph: of a scenario).
 
 #include <conesim/sdk.hpp>
@@ -39,6 +39,9 @@ slam::GraphSlamConfig read_config(const sdk::Config& config) {
                                        nullptr};
   config.require_known(kKnown);
   slam::GraphSlamConfig c;
+  // as conesim runs it (default_slam_settings, sim/scenario.hpp): the ICR edge allows the
+  // MuJoCo car's rear-axle slip
+  c.icr_sigma_m = 0.3;
   c.sensor_x_m = config.number("sensor_x_m", c.sensor_x_m);
   c.min_range_m = config.number("min_range_m", c.min_range_m);
   c.max_range_m = config.number("max_range_m", c.max_range_m);
