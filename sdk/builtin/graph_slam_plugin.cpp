@@ -6,8 +6,9 @@
 //
 // config: where the perception sees cones (sensor_x_m, min_range_m, max_range_m, fov_deg: the
 // view conesim gives the built-in back-end; the defaults are the cone sensor's) and the graph's
-// own keys (default: as a scenario's slam.graph) window_poses, confirm_sightings, tentative_max_travel_m, global_only,
-// landmark_edges, icr_sigma_m, localise_after_loop_closure (slam.graph: of a scenario).
+// own keys (default: as a scenario's slam.graph) window_poses, confirm_sightings,
+// tentative_max_travel_m, global_only, landmark_edges, icr_sigma_m, localise_after_loop_closure
+// (slam.graph: of a scenario).
 
 #include <conesim/sdk.hpp>
 #include <stdexcept>
