@@ -68,7 +68,7 @@ def drive(obs, start, state):
 class PurePursuit:
     """The same driver as a class, for a normal `conesim run` (docs/sdk.md, "Python"):
 
-        ./conesim run autocross --set 'autonomy.driver={plugin: build/python/libconesim_python_driver.so,
+        ./conesim run autocross --set 'autonomy.driver={plugin: build/python/libconesim_python_plugin.so,
             config: {file: examples/python_driver.py, class: PurePursuit}}'
     """
 

@@ -337,30 +337,28 @@ void PluginBackend::set_prior_map(const std::vector<core::MapCone>& map) {
 
 void PluginBackend::process(const slam::SlamInput& input) {
   sdk::SlamInput in;
-  const slam::OdometryDelta& o = input.odometry;
-  in.odometry.from_us = o.from;
-  in.odometry.to_us = o.to;
-  in.odometry.delta = to_sdk(o.delta);
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) in.odometry.covariance[3 * r + c] = o.covariance(r, c);
-  in.odometry.distance_m = o.distance_m;
-  in.odometry.speed_mps = o.speed_mps;
-  in.odometry.yaw_rate_rps = o.yaw_rate_rps;
+  in.odometry = to_sdk(input.odometry);
   in.observations = to_sdk(input.observations, observations_);
   guard_.call("process", [&] { slam_.object->process(in); });
   // what it did with each observation: kept only when it reports one per observation
   associations_.clear();
   const sdk::Span<int32_t> codes =
       guard_.call("associations", [&] { return slam_.object->associations(); });
-  if (codes.size == input.observations.cones.size())
-    for (const int32_t code : codes) {
-      slam::Association a;
-      a.kind = code >= 0    ? slam::Association::Kind::kMatched
-               : code == -1 ? slam::Association::Kind::kNew
-                            : slam::Association::Kind::kRejected;
-      a.landmark_id = code >= 0 ? code : slam::Association::kNoLandmark;
-      associations_.push_back(a);
-    }
+  if (codes.size != input.observations.cones.size()) return;
+  // and the landmarks the new ones started, when it says
+  const sdk::Span<int32_t> started =
+      guard_.call("new_landmark_ids", [&] { return slam_.object->new_landmark_ids(); });
+  for (uint64_t i = 0; i < codes.size; ++i) {
+    const int32_t code = codes[i];
+    slam::Association a;
+    a.kind = code >= 0    ? slam::Association::Kind::kMatched
+             : code == -1 ? slam::Association::Kind::kNew
+                          : slam::Association::Kind::kRejected;
+    a.landmark_id = code >= 0                                  ? code
+                    : code == -1 && started.size == codes.size ? started[i]
+                                                               : slam::Association::kNoLandmark;
+    associations_.push_back(a);
+  }
 }
 
 core::Estimate PluginBackend::estimate() const {

@@ -19,6 +19,7 @@
 #include "control/driver.hpp"
 #include "core/autonomy_types.hpp"
 #include "sdk/builtin/bridge.hpp"
+#include "sdk/builtin/slam_bridge.hpp"
 #include "slam/backend.hpp"
 
 namespace conesim::sim {

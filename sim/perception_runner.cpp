@@ -32,10 +32,7 @@ int cluster_label(const slam::frontend::LidarCone& cone, const core::PointCloudL
 }  // namespace
 
 core::Pose2 motion_over(const slam::frontend::SweepMotion& m, double dt) {
-  const double dyaw = m.yaw_rate_rps * dt;
-  const double ds = m.speed_mps * dt;
-  // the chord of the arc, at half the heading change
-  return {ds * std::cos(0.5 * dyaw), ds * std::sin(0.5 * dyaw), dyaw};
+  return slam::frontend::motion_over(m.speed_mps, m.yaw_rate_rps, dt);
 }
 
 PerceptionView perception_view(const Scenario& s) {
@@ -99,8 +96,10 @@ PerceptionRunner::PerceptionRunner(const Scenario& s, const tracks::Track& track
     plugin_half_fov_rad_ =
         spec.lidar ? std::numbers::pi
                    : 0.5 * s.sensors.camera.horizontal_fov_deg * std::numbers::pi / 180.0;
-    delivered_score_ =
-        std::make_unique<PerceptionScorer>(plugin_sensor_xy_, kScoreBandM, kScoreRangeM);
+    // (one given the camera alone is scored as the stereo front-end is, from its first pair)
+    if (spec.lidar)
+      delivered_score_ =
+          std::make_unique<PerceptionScorer>(plugin_sensor_xy_, kScoreBandM, kScoreRangeM);
     return;
   }
   const bool lidar = mode_ == "lidar" || mode_ == "fused";
@@ -215,7 +214,7 @@ std::optional<DeliveredDetections> PerceptionRunner::on_stereo(
   // a stereo pair measures a cone only where both images hold all of it: the true cones in
   // view are those wholly inside the left and the right camera's field of view
   const double half_fov = std::atan2(frame.intrinsics.cx, frame.intrinsics.fx);
-  const auto in_left = truth_in_view(true_pose, camera_xy, half_fov, is_knocked);
+  const auto in_left = in_left_image(frame, true_pose, is_knocked);
   std::vector<TrueConeInView> truth;
   std::vector<core::Vec2> partial;
   for (const TrueConeInView& c : in_left) {
@@ -256,16 +255,11 @@ core::ConeObservations PerceptionRunner::plugin_lidar(
     const core::PointCloud& cloud, core::TimeUs end,
     const slam::frontend::SweepMotion& motion) const {
   std::vector<sdk::LidarPoint> points;
-  points.reserve(cloud.points.size());
-  for (const core::LidarPoint& p : cloud.points)
-    points.push_back({p.x, p.y, p.z, p.intensity, p.ring, 0, p.time_offset_s});
   sdk::LidarSweep sweep;
   sweep.stamp_us = cloud.stamp;
   sweep.end_us = end;
-  sweep.points = {points.data(), points.size()};
-  const Eigen::Vector3d& m = lidar_mount_.position;
-  const Eigen::Quaterniond& q = lidar_mount_.orientation;
-  sweep.sensor_in_vehicle = {{m.x(), m.y(), m.z()}, {q.w(), q.x(), q.y(), q.z()}};
+  sweep.points = to_sdk(cloud, points);
+  sweep.sensor_in_vehicle = to_sdk(lidar_mount_);
   const sdk::ConeFrame frame = plugin_guard_->call("on_lidar", [&] {
     return plugin_.object->on_lidar(sweep, {motion.speed_mps, motion.yaw_rate_rps});
   });
@@ -280,19 +274,7 @@ core::ConeObservations PerceptionRunner::plugin_lidar(
 }
 
 core::ConeObservations PerceptionRunner::plugin_stereo(const core::StereoFrame& f) const {
-  auto to_pose3 = [](const core::Pose3& p) {
-    return sdk::Pose3{{p.position.x(), p.position.y(), p.position.z()},
-                      {p.orientation.w(), p.orientation.x(), p.orientation.y(), p.orientation.z()}};
-  };
-  sdk::StereoFrame frame;
-  frame.stamp_us = f.stamp;
-  frame.left = {f.left.width_px, f.left.height_px, f.left.rgb.data()};
-  frame.right = {f.right.width_px, f.right.height_px, f.right.rgb.data()};
-  const core::CameraIntrinsics& k = f.intrinsics;
-  frame.intrinsics = {k.width_px, k.height_px, k.fx, k.fy, k.cx, k.cy};
-  frame.left_in_vehicle = to_pose3(f.left_in_vehicle);
-  frame.right_in_vehicle = to_pose3(f.right_in_vehicle);
-  frame.baseline_m = f.baseline_m;
+  const sdk::StereoFrame frame = to_sdk(f);
   const sdk::ConeFrame cones = plugin_guard_->call("on_stereo", [&] {
     return plugin_.object->on_stereo(frame, {motion_.speed_mps, motion_.yaw_rate_rps});
   });
@@ -305,11 +287,25 @@ core::ConeObservations PerceptionRunner::plugin_stereo(const core::StereoFrame& 
   return out;
 }
 
+std::vector<TrueConeInView> PerceptionRunner::in_left_image(
+    const core::StereoFrame& frame, const core::Pose2& true_pose,
+    const std::function<bool(int)>& is_knocked) const {
+  const double half_fov = std::atan2(frame.intrinsics.cx, frame.intrinsics.fx);
+  return truth_in_view(true_pose, frame.left_in_vehicle.position.head<2>(), half_fov, is_knocked);
+}
+
 std::optional<DeliveredDetections> PerceptionRunner::on_plugin_frame(
     core::ConeObservations frame, const core::Pose2& true_pose,
-    const std::function<bool(int)>& is_knocked) {
+    const std::function<bool(int)>& is_knocked, const core::StereoFrame* pair) {
   if (frame.stamp < 0) return std::nullopt;
-  const auto truth = truth_in_view(true_pose, plugin_sensor_xy_, plugin_half_fov_rad_, is_knocked);
+  // the cones around the LiDAR; a pair's frame against every cone in the left image, from the
+  // left camera (as the stereo front-end's)
+  if (pair && !delivered_score_)
+    delivered_score_ = std::make_unique<PerceptionScorer>(pair->left_in_vehicle.position.head<2>(),
+                                                          kScoreBandM, kScoreRangeM);
+  const auto truth =
+      pair ? in_left_image(*pair, true_pose, is_knocked)
+           : truth_in_view(true_pose, plugin_sensor_xy_, plugin_half_fov_rad_, is_knocked);
   DeliveredDetections out;
   out.labels.cone_id = delivered_score_->add_frame(frame, truth);
   out.observations = std::move(frame);

@@ -72,11 +72,13 @@ class PerceptionRunner {
                                       const slam::frontend::SweepMotion& motion) const;
   /// The plug-in's cones of one stereo pair; stamp -1 for none. Throws PluginFailure.
   core::ConeObservations plugin_stereo(const core::StereoFrame& frame) const;
-  /// A plug-in's frame scored against the true cones around the sensor (the LiDAR's, or the
-  /// camera's field of view) and labelled by the match; nullopt for no frame.
+  /// A plug-in's frame scored against the true cones around the LiDAR, or with `pair` (a
+  /// plug-in given the camera alone) in the left image's field of view from the left camera, as
+  /// the stereo front-end's frames are, and labelled by the match; nullopt for no frame.
   std::optional<DeliveredDetections> on_plugin_frame(core::ConeObservations frame,
                                                      const core::Pose2& true_pose,
-                                                     const std::function<bool(int)>& is_knocked);
+                                                     const std::function<bool(int)>& is_knocked,
+                                                     const core::StereoFrame* pair = nullptr);
   /// The LiDAR detector (const: it may run on the sweep's worker thread); null when unused.
   const slam::frontend::LidarConeDetector* lidar_detector() const { return lidar_detector_.get(); }
   /// The stereo detector; null when unused.
@@ -115,6 +117,10 @@ class PerceptionRunner {
   // the true cones standing within the scorer's range and the sensor's field of view
   std::vector<TrueConeInView> truth_in_view(const core::Pose2& true_pose, const core::Vec2& sensor,
                                             double half_fov_rad,
+                                            const std::function<bool(int)>& is_knocked) const;
+  // the true cones in the left image's field of view, from the left camera
+  std::vector<TrueConeInView> in_left_image(const core::StereoFrame& frame,
+                                            const core::Pose2& true_pose,
                                             const std::function<bool(int)>& is_knocked) const;
   // the tracker's step, with the motion since its previous frame
   core::ConeObservations track(const core::ConeObservations& frame);

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 
 #include "control/drivability.hpp"
@@ -17,6 +18,7 @@
 #include "sim/report.hpp"
 #include "sim/slam_runner.hpp"
 #include "sim/track_commands.hpp"
+#include "sim/vehicle_sensor_feed.hpp"
 #include "sim/vehicle_sim.hpp"
 #include "tracks/fsg_layouts.hpp"
 #include "tracks/io.hpp"
@@ -319,7 +321,12 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     for (const tracks::Cone& c : track.cones)
       prior_map.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
   }
-  SensorRig rig(s, track, car, options.dump, options.out_dir);
+  SensorRig rig(s, track, car, options.dump, options.out_dir, options.sensor_tap);
+  // the car's own sensors for the tap: a feed of its own, with SLAM's seed and noise (so the
+  // samples SLAM's odometry integrates)
+  std::optional<VehicleSensorFeed> tap_feed;
+  if (options.sensor_tap && options.sensor_tap->kinds().vehicle_sensors())
+    tap_feed.emplace(s.seed, s.sensors.imu, s.sensors.wheel_encoders);
   // every perception but ground truth delivers frames with noise and latency
   const bool noisy_perception = s.perception != "ground_truth";
   // the stack: every driver, the reference one included, runs through the SDK's interface; a
@@ -475,10 +482,15 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       if (slam) trajectory_odometry.push_back(slam->odometry_pose_now(t));
     }
     // MuJoCo's sensors only on the steps whose IMU sample SLAM's odometry takes
-    car.step(command, slam && slam->imu_due(t + step_us));
+    car.step(command,
+             (slam && slam->imu_due(t + step_us)) || (tap_feed && tap_feed->imu_due(t + step_us)));
     t += step_us;
     referee.update(t, car.truth());
     rig.step(t, car, referee);
+    if (tap_feed) {
+      tap_feed->step(t, car);
+      tap_feed->drain_to(*options.sensor_tap, t);
+    }
     if (slam) {
       slam->step(t, car);
       // a frame the next driver tick takes goes to SLAM now if nothing before that tick reads

@@ -14,6 +14,7 @@
 #include "sim/referee.hpp"
 #include "sim/scenario.hpp"
 #include "sim/sensor_rig.hpp"
+#include "sim/sensor_tap.hpp"
 #include "tracks/track.hpp"
 
 namespace conesim::sim {
@@ -44,6 +45,9 @@ struct RunOptions {
   /// Called at every driver tick before the driver, with the sim time and the referee's verdict
   /// so far.
   std::function<void(core::TimeUs, const RefereeResult&)> on_tick;
+  /// An observer of the raw sensor data (the Python module's `observe=`), null for none: the
+  /// sensors it asks for are switched on; it changes nothing else of the run.
+  SensorTap* sensor_tap = nullptr;
 };
 
 /// The outcome of a run.

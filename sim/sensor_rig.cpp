@@ -135,10 +135,11 @@ struct SensorRig::SweepInProgress {
 };
 
 SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const VehicleSim& car,
-                     const DumpOptions& dump, const fs::path& run_dir)
+                     const DumpOptions& dump, const fs::path& run_dir, SensorTap* tap)
     : track_(track),
       dump_(dump),
       run_dir_(run_dir),
+      tap_(tap),
       lidar_rng_(core::derive_seed(s.seed, kLidarStream)) {
   // the cone sensor: the perception of `perception: cone_sensor`, or dumped
   if (s.perception == "cone_sensor" || dump_.sensors.count("detections")) {
@@ -156,14 +157,17 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
   // raw-data perception switches on the sensors it needs
   const bool raw_lidar = s.perception == "lidar" || s.perception == "fused";
   const bool raw_camera = s.perception == "stereo" || s.perception == "fused";
+  const bool tap_lidar = tap_ && tap_->kinds().lidar;
+  const bool tap_camera = tap_ && tap_->kinds().camera;
 
   // the LiDAR sweeps from the first step on
-  if (s.sensors.lidar_enabled || raw_lidar || dump_.sensors.count("lidar")) {
+  if (s.sensors.lidar_enabled || raw_lidar || tap_lidar || dump_.sensors.count("lidar")) {
     auto config = sensors::lidar_preset(s.sensors.lidar_model);
     const auto mount = sensors::lidar_mount_preset(s.sensors.lidar_mount);
     if (!config) throw std::invalid_argument("sensors.lidar.model: unknown model " + s.sensors.lidar_model);
     if (!mount) throw std::invalid_argument("sensors.lidar.mount: unknown mount " + s.sensors.lidar_mount);
     config->mount = *mount;
+    lidar_mount_ = *mount;
     lidar_ = std::make_unique<sensors::Lidar>(*config, track);
     poses_ = sensors::PoseHistory(2 * config->sweep_period_us());
     poses_.push(0, car.vehicle_pose3());
@@ -173,7 +177,7 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
   }
 
   // the stereo camera
-  if (s.sensors.camera_enabled || raw_camera || dump_.sensors.count("camera")) {
+  if (s.sensors.camera_enabled || raw_camera || tap_camera || dump_.sensors.count("camera")) {
     if (const std::string e = s.sensors.camera.validate(); !e.empty())
       throw std::invalid_argument("sensors.camera." + e);
     camera_ = std::make_unique<sensors::StereoCamera>(s.sensors.camera, car.model(), track);
@@ -221,9 +225,10 @@ void SensorRig::step(TimeUs t, const VehicleSim& car, const Referee& referee) {
   sync_knocked_cones(referee);
   if (lidar_) {
     poses_.push(t, car.vehicle_pose3());
-    // a sweep whose cones SLAM waits for is collected when its latency has passed; a sweep
-    // only recorded goes on computing until the next one starts
-    if (pending_scan_.valid() && perception_ && perception_->uses_lidar() &&
+    // a sweep whose cones SLAM (or whose points the tap) waits for is collected when its
+    // latency has passed; a sweep only recorded goes on computing until the next one starts
+    if (pending_scan_.valid() &&
+        ((perception_ && perception_->uses_lidar()) || (tap_ && tap_->kinds().lidar)) &&
         t >= pending_delivery_us_)
       collect_sweep();
     if (t > lidar_->sweep_end(sweep_start_))
@@ -339,6 +344,16 @@ void SensorRig::collect_sweep() {
   const int index = stats_.lidar_scans++;
   stats_.lidar_points += static_cast<int64_t>(scan.cloud.points.size());
 
+  // the tap gets the sweep as a perception plug-in does, when its latency has passed
+  if (tap_ && tap_->kinds().lidar) {
+    sdk::LidarSweep sweep;
+    sweep.stamp_us = scan.cloud.stamp;
+    sweep.end_us = result.end_us;
+    sweep.points = to_sdk(scan.cloud, tap_points_);
+    sweep.sensor_in_vehicle = to_sdk(lidar_mount_);
+    tap_->on_lidar(pending_delivery_us_, sweep,
+                   tap_->kinds().lidar_labels ? &scan.labels.cone_id : nullptr);
+  }
   // a plug-in with the camera too sees the sweep now, between its stereo frames
   if (perception_ && perception_->is_plugin() && perception_->uses_lidar() &&
       perception_->uses_camera()) {
@@ -445,6 +460,7 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
                   with_depth_, frame_, frame_labels_);
   stats_.camera_ms_total += std::chrono::duration<double, std::milli>(clock::now() - start).count();
   const int index = stats_.camera_frames++;
+  if (tap_ && tap_->kinds().camera) tap_->on_stereo(t + camera_latency_us_, to_sdk(frame_));
 
   // the stereo cone detector on the pair; its cones reach SLAM after the latency
   std::optional<slam::frontend::StereoDetections> detections;
@@ -457,9 +473,9 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
       stats_.stereo_detect_ms_total +=
           std::chrono::duration<double, std::milli>(clock::now() - t0).count();
       if (!perception_->uses_lidar()) {
-        auto d =
-            perception_->on_plugin_frame(std::move(cones), car.truth().pose,
-                                         [&referee](int id) { return referee.is_knocked(id); });
+        auto d = perception_->on_plugin_frame(
+            std::move(cones), car.truth().pose,
+            [&referee](int id) { return referee.is_knocked(id); }, &frame_);
         if (d) cone_queue_.push_back({t + camera_latency_us_, std::move(*d)});
       }
     } catch (const PluginFailure& e) {

@@ -21,6 +21,7 @@
 #include "sim/perception_runner.hpp"
 #include "sim/referee.hpp"
 #include "sim/scenario.hpp"
+#include "sim/sensor_tap.hpp"
 #include "sim/vehicle_sim.hpp"
 #include "sim/worker_thread.hpp"
 
@@ -50,10 +51,12 @@ struct SensorRigStats {
 
 class SensorRig {
  public:
-  /// Sets up the sensors the scenario and the dumps ask for. Throws std::invalid_argument for
-  /// a sensor configuration that fails validation.
+  /// Sets up the sensors the scenario, the dumps and the tap ask for. Throws
+  /// std::invalid_argument for a sensor configuration that fails validation. tap: an observer
+  /// of the raw LiDAR sweeps and stereo pairs (null for none).
   SensorRig(const Scenario& scenario, const tracks::Track& track, const VehicleSim& car,
-            const DumpOptions& dump, const std::filesystem::path& run_dir);
+            const DumpOptions& dump, const std::filesystem::path& run_dir,
+            SensorTap* tap = nullptr);
   ~SensorRig();
 
   /// Runs what is due at sim time t (after the physics step that reached t).
@@ -110,6 +113,10 @@ class SensorRig {
 
   const Referee* referee_ = nullptr;
   std::unique_ptr<PerceptionRunner> perception_;
+  SensorTap* tap_ = nullptr;
+  // the LiDAR's mount, and the tap's point buffer (reused from sweep to sweep)
+  core::Pose3 lidar_mount_;
+  std::vector<sdk::LidarPoint> tap_points_;
 
   std::unique_ptr<sensors::ConeSensor> cone_sensor_;
   // the tracker on cone-sensor frames (`sensors.cone_sensor.track`), null when off, with the

@@ -217,7 +217,9 @@ SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const Vehi
     if (!method)
       if (const auto it = s.slam_association.find(specs[k].backend); it != s.slam_association.end())
         method = it->second;
-    lane->association = method                           ? std::string(slam::to_string(*method))
+    // (a plug-in associates as it does itself)
+    lane->association = k == 0 && s.slam_plugin          ? std::string("plugin")
+                        : method                         ? std::string(slam::to_string(*method))
                         : specs[k].backend == "graph"    ? "tracking"
                         : specs[k].backend == "odometry" ? "nn"
                                                          : "ml";

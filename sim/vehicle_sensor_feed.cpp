@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <iterator>
 
+#include "sdk/builtin/bridge.hpp"
+
 namespace conesim::sim {
 
 namespace {
@@ -86,6 +88,17 @@ void VehicleSensorFeed::feed_copy(slam::Odometry& odometry, core::TimeUs stamp) 
     if (v.stamp > stamp) break;
     add(odometry, v);
   }
+}
+
+void VehicleSensorFeed::drain_to(SensorTap& tap, core::TimeUs now) {
+  using sdk_bridge::to_sdk;
+  const SensorTapKinds& kinds = tap.kinds();
+  for (const Sample& v : delivered_) {
+    if (v.kind == 0 && kinds.imu) tap.on_imu(now, to_sdk(v.imu));
+    if (v.kind == 1 && kinds.wheels) tap.on_wheels(now, to_sdk(v.wheels));
+    if (v.kind == 2 && kinds.steering) tap.on_steering(now, to_sdk(v.steering));
+  }
+  delivered_.clear();
 }
 
 }  // namespace conesim::sim

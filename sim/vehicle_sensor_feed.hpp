@@ -8,6 +8,7 @@
 
 #include "core/time.hpp"
 #include "sensors/vehicle_sensors.hpp"
+#include "sim/sensor_tap.hpp"
 #include "sim/vehicle_sim.hpp"
 #include "slam/odometry.hpp"
 
@@ -35,6 +36,10 @@ class VehicleSensorFeed {
   /// Feeds the delivered samples stamped up to `stamp` into the odometry without dropping them
   /// (for an estimate carried forward to the present).
   void feed_copy(slam::Odometry& odometry, core::TimeUs stamp) const;
+
+  /// Hands every delivered sample to the tap (the kinds it wants), as delivered at `now`, and
+  /// drops them: for a feed of the tap's own, with the seed of SLAM's, so the same samples.
+  void drain_to(SensorTap& tap, core::TimeUs now);
 
  private:
   struct Sample {

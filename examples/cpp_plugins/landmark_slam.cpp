@@ -59,6 +59,7 @@ class LandmarkSlam final : public Slam {
 
     // associate each cone with the nearest landmark of a compatible class within the gate
     associations_.assign(in.observations.cones.size, -2);
+    started_.assign(in.observations.cones.size, -1);
     std::vector<int> matched(in.observations.cones.size, -1);
     std::vector<double> wx(in.observations.cones.size), wy(in.observations.cones.size);
     for (uint64_t i = 0; i < in.observations.cones.size; ++i) {
@@ -120,6 +121,7 @@ class LandmarkSlam final : public Slam {
         ++l.sightings;
       } else if (!localising_ && !complete_ && nearest_m(wx[i], wy[i]) > 1.5) {
         associations_[i] = -1;
+        started_[i] = next_id_;
         Landmark l{next_id_++, ConeClass::kUnknown, wx[i], wy[i], 1, frame_, {}};
         vote(l, o.cls);
         landmarks_.push_back(l);
@@ -161,6 +163,9 @@ class LandmarkSlam final : public Slam {
     return {associations_.data(), associations_.size()};
   }
 
+  // the landmark each new one started, so its first sighting is scored too
+  Span<int32_t> new_landmark_ids() const override { return {started_.data(), started_.size()}; }
+
   int32_t loop_closures() const override { return loop_closures_; }
 
  private:
@@ -201,6 +206,7 @@ class LandmarkSlam final : public Slam {
   double speed_ = 0.0, yaw_rate_ = 0.0, travelled_m_ = 0.0;
   std::vector<Landmark> landmarks_;
   std::vector<int32_t> associations_;
+  std::vector<int32_t> started_;
   mutable std::vector<MapCone> map_;
   bool localising_ = false, complete_ = false;
   int32_t next_id_ = 0, loop_closures_ = 0;

@@ -4,10 +4,13 @@
 // the run loop (sim/autonomy.cpp) and by the reference driver plug-in (reference_driver_plugin).
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <utility>
 #include <vector>
 
 #include "conesim/sdk/types.hpp"
 #include "core/autonomy_types.hpp"
+#include "core/measurements.hpp"
 
 namespace conesim::sdk_bridge {
 
@@ -133,6 +136,80 @@ inline core::Estimate from_sdk(const sdk::Estimate& e) {
                                                        : core::SlamPhase::kMapping;
   out.map_complete = e.map_complete != 0;
   return out;
+}
+
+/// A 3D pose (position, unit quaternion) into the SDK's type.
+inline sdk::Pose3 to_sdk(const core::Pose3& p) {
+  const Eigen::Quaterniond& q = p.orientation;
+  return {{p.position.x(), p.position.y(), p.position.z()}, {q.w(), q.x(), q.y(), q.z()}};
+}
+
+/// A 3D pose from the SDK's type.
+inline core::Pose3 from_sdk(const sdk::Pose3& p) {
+  core::Pose3 out;
+  out.position = {p.position_m.x, p.position_m.y, p.position_m.z};
+  out.orientation =
+      Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z);
+  return out;
+}
+
+/// A LiDAR sweep's points into `buffer` (the same numbers: floats stay floats).
+inline sdk::Span<sdk::LidarPoint> to_sdk(const core::PointCloud& cloud,
+                                         std::vector<sdk::LidarPoint>& buffer) {
+  buffer.clear();
+  buffer.reserve(cloud.points.size());
+  for (const core::LidarPoint& p : cloud.points)
+    buffer.push_back({p.x, p.y, p.z, p.intensity, p.ring, 0, p.time_offset_s});
+  return {buffer.data(), buffer.size()};
+}
+
+/// A stereo pair as the SDK's view: the images point into `frame`.
+inline sdk::StereoFrame to_sdk(const core::StereoFrame& f) {
+  sdk::StereoFrame out;
+  out.stamp_us = f.stamp;
+  out.left = {f.left.width_px, f.left.height_px, f.left.rgb.data()};
+  out.right = {f.right.width_px, f.right.height_px, f.right.rgb.data()};
+  const core::CameraIntrinsics& k = f.intrinsics;
+  out.intrinsics = {k.width_px, k.height_px, k.fx, k.fy, k.cx, k.cy};
+  out.left_in_vehicle = to_sdk(f.left_in_vehicle);
+  out.right_in_vehicle = to_sdk(f.right_in_vehicle);
+  out.baseline_m = f.baseline_m;
+  return out;
+}
+
+/// A stereo pair from the SDK's view (the images copied).
+inline core::StereoFrame from_sdk(const sdk::StereoFrame& f) {
+  core::StereoFrame out;
+  out.stamp = f.stamp_us;
+  for (auto [from, to] : {std::pair{&f.left, &out.left}, {&f.right, &out.right}}) {
+    to->width_px = from->width_px;
+    to->height_px = from->height_px;
+    to->rgb.assign(from->rgb, from->rgb + 3 * static_cast<size_t>(from->width_px) *
+                                              static_cast<size_t>(from->height_px));
+  }
+  const sdk::CameraIntrinsics& k = f.intrinsics;
+  out.intrinsics = {k.width_px, k.height_px, k.fx, k.fy, k.cx, k.cy};
+  out.left_in_vehicle = from_sdk(f.left_in_vehicle);
+  out.right_in_vehicle = from_sdk(f.right_in_vehicle);
+  out.baseline_m = f.baseline_m;
+  return out;
+}
+
+/// An IMU sample into the SDK's type.
+inline sdk::ImuSample to_sdk(const core::ImuSample& s) {
+  return {s.stamp,
+          {s.gyro_rps.x(), s.gyro_rps.y(), s.gyro_rps.z()},
+          {s.accel_mps2.x(), s.accel_mps2.y(), s.accel_mps2.z()}};
+}
+
+/// Wheel speeds into the SDK's type.
+inline sdk::WheelSpeeds to_sdk(const core::WheelSpeeds& w) {
+  return {w.stamp, {w.omega_rps[0], w.omega_rps[1], w.omega_rps[2], w.omega_rps[3]}};
+}
+
+/// A steering sample into the SDK's type.
+inline sdk::SteeringSample to_sdk(const core::SteeringSample& s) {
+  return {s.stamp, s.steer_rad};
 }
 
 /// A command from the SDK's type.

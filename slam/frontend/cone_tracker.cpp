@@ -16,6 +16,13 @@
 
 namespace conesim::slam::frontend {
 
+core::Pose2 motion_over(double speed_mps, double yaw_rate_rps, double dt_s) {
+  const double dyaw = yaw_rate_rps * dt_s;
+  const double ds = speed_mps * dt_s;
+  // the chord of the arc, at half the heading change
+  return {ds * std::cos(0.5 * dyaw), ds * std::sin(0.5 * dyaw), dyaw};
+}
+
 double bhattacharyya_distance(const core::Vec2& mean_a, const Eigen::Matrix2d& cov_a,
                               const core::Vec2& mean_b, const Eigen::Matrix2d& cov_b) {
   // a degenerate covariance matches nothing

@@ -33,6 +33,10 @@ struct TrackerConfig {
 double bhattacharyya_distance(const core::Vec2& mean_a, const Eigen::Matrix2d& cov_a,
                               const core::Vec2& mean_b, const Eigen::Matrix2d& cov_b);
 
+/// Where the vehicle frame dt_s seconds later lies in the vehicle frame now, moving at a
+/// constant speed and yaw rate (the chord of the arc): the motion a tracker predicts by.
+core::Pose2 motion_over(double speed_mps, double yaw_rate_rps, double dt_s);
+
 /// The tracker's state: live tracks with their colour votes. Deterministic; not thread-safe.
 class ConeTracker {
  public:

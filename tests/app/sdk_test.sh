@@ -3,15 +3,18 @@
 # plug-ins out of tree with find_package(conesim), run them in the loop; plug-ins that are not
 # plug-ins, built against another ABI or refusing their configuration are refused (exit 2, the
 # file named, nothing written); one that throws, returns NaN or overruns its time budget ends
-# the run with a DNF naming it; the reference driver loaded as a plug-in gives the built-in
-# run's metrics.
+# the run with a DNF naming it; the reference driver, GraphSLAM and the stereo front-end
+# loaded as plug-ins give the built-in runs' metrics.
 # usage: sdk_test.sh CONESIM_BINARY BUILD_DIR SOURCE_DIR TEST_PLUGIN_DIR REFERENCE_DRIVER_SO
+#        GRAPH_SLAM_SO STEREO_PERCEPTION_SO
 set -uo pipefail
 bin="$(realpath "$1")"
 build="$(realpath "$2")"
 src="$(realpath "$3")"
 plugins="$(realpath "$4")"
 reference="$(realpath "$5")"
+graph="$(realpath "$6")"
+stereo="$(realpath "$7")"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 . "$(dirname "$0")/check_lib.sh"
@@ -99,7 +102,7 @@ refused missing_file "autonomy\.driver: .*nowhere\.so: no such plug-in file" aut
   --set autonomy.driver=plugin:nowhere.so
 refused no_entry_point "autonomy\.driver: .*libtest_not_a_plugin\.so: no symbol conesim_plugin_entry" \
   autocross --set "autonomy.driver=plugin:$plugins/libtest_not_a_plugin.so"
-refused wrong_abi "libtest_wrong_abi_plugin\.so: built against conesim SDK ABI 999, and this conesim .* takes ABI 1" \
+refused wrong_abi "libtest_wrong_abi_plugin\.so: built against conesim SDK ABI 999, and this conesim .* takes ABI 2" \
   autocross --set "autonomy.driver=plugin:$plugins/libtest_wrong_abi_plugin.so"
 refused not_a_library "autonomy\.slam: .*: cannot load the plug-in" acceleration --set perception=cone_sensor \
   --set "autonomy.slam=plugin:$src/README.md"
@@ -144,7 +147,12 @@ builtin_status=$?
 check builtin_as_plugin "$builtin_status" "$bin" run trackdrive-graphslam --no-plot \
   --out "$work/as_plugin" \
   --set "autonomy.driver={plugin: $reference, config: {explore_speed_mps: 9, fast_speed_mps: 16}}"
-python3 - "$work/builtin/metrics.json" "$work/as_plugin/metrics.json" >"$work/diff" <<'PY'
+# the metrics of two runs compared, but for the wall-clock timings, the autonomy key naming the
+# plug-ins and what only a built-in back-end reports (its statistics, which estimate it
+# reports) or a built-in perception (its mode, and each sensor's own score beside the score of
+# what it delivers); the SLAM lane FROM of the first is compared with the lane TO of the second
+compare_runs() {  # compare_runs A.json B.json [FROM TO]
+  python3 - "$@" <<'PY'
 import json, sys
 def timing(k):
     return k in ("wall_time_s", "real_time_factor", "autonomy") or k.endswith(("_ms", "_us")) \
@@ -156,8 +164,40 @@ def strip(o):
         return [strip(v) for v in o]
     return o
 a, b = (strip(json.load(open(f))) for f in sys.argv[1:3])
-print("identical" if a == b else "different")
+if len(sys.argv) > 3:
+    lane_a, lane_b = sys.argv[3:5]
+    for m, lane in ((a, lane_a), (b, lane_b)):
+        m["slam"] = {"lane": {k: v for k, v in m["slam"][lane].items()
+                              if k not in ("association", "estimate_source", "backend_stats")}}
+        m.pop("slam_driving")
+if a["perception"]["mode"] != b["perception"]["mode"]:
+    for m in (a, b):
+        m["perception"] = {k: v for k, v in m["perception"].items()
+                           if k not in ("mode", "lidar", "lidar_returned_cones", "stereo")}
+diff = [k for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+print("identical" if not diff else "different: " + ", ".join(diff))
 PY
+}
+compare_runs "$work/builtin/metrics.json" "$work/as_plugin/metrics.json" >"$work/diff"
 expect_text builtin_identical "$work/diff" "^identical$"
+
+# 8: GraphSLAM loaded as a plug-in (the driving lane plugin:graph) gives the built-in lane's
+#    figures and the same run, to the bit
+check graph_as_plugin "$builtin_status" "$bin" run trackdrive-graphslam --no-plot \
+  --out "$work/graph_plugin" --set "autonomy.slam=plugin:$graph"
+expect_json graph_plugin_lane "$work/graph_plugin/metrics.json" "m['slam_driving']" "plugin:graph"
+compare_runs "$work/builtin/metrics.json" "$work/graph_plugin/metrics.json" graph plugin:graph \
+  >"$work/graph_diff"
+expect_text graph_identical "$work/graph_diff" "^identical$"
+
+# 9: the stereo front-end (detector and tracker) loaded as a perception plug-in given the camera
+#    gives the built-in stereo run: the same frames to SLAM, scored the same
+"$bin" run autocross-stereo --no-plot --out "$work/stereo_builtin" >/dev/null 2>&1
+check stereo_as_plugin $? "$bin" run autocross-stereo --no-plot --out "$work/stereo_plugin" \
+  --set "autonomy.perception={plugin: $stereo, sensors: [camera]}"
+expect_json stereo_plugin_mode "$work/stereo_plugin/metrics.json" "m['perception']['mode']" plugin
+compare_runs "$work/stereo_builtin/metrics.json" "$work/stereo_plugin/metrics.json" \
+  >"$work/stereo_diff"
+expect_text stereo_identical "$work/stereo_diff" "^identical$"
 
 report

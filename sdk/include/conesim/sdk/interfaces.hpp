@@ -74,6 +74,13 @@ class Slam {
 
   /// Loop closures detected so far.
   virtual int32_t loop_closures() const { return 0; }
+
+  /// For each observation of the last process() that started a landmark (-1 in
+  /// associations()), that landmark's id, index by index (any value elsewhere); empty when not
+  /// reported. With it the scorer counts a landmark's first sighting towards the cone it stands
+  /// for, as it does for conesim's own back-ends; without it a landmark's first match is scored
+  /// against its later sightings only. Added in ABI 2.
+  virtual Span<int32_t> new_landmark_ids() const { return {}; }
 };
 
 /// What a Driver reports about its mission (the progress line, DNF reasons).
