@@ -5,8 +5,12 @@
 # usage: run_cli_test.sh CONESIM_BINARY
 set -uo pipefail
 bin="$(realpath "$1")"
-work="$(mktemp -d)"
-trap 'rm -rf "$work"' EXIT
+# the work folder one level down in a private folder, so that a name escaping it ("../x")
+# lands where no other program writes (a shared /tmp may hold an x of its own)
+top="$(mktemp -d)"
+work="$top/work"
+mkdir "$work"
+trap 'rm -rf "$top"' EXIT
 . "$(dirname "$0")/check_lib.sh"
 cd "$work" || exit 1
 expect_missing() {  # expect_missing NAME PATH
