@@ -9,14 +9,6 @@ work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 . "$(dirname "$0")/check_lib.sh"
 cd "$work" || exit 1
-expect_missing() {  # expect_missing NAME PATH
-  if [ -e "$2" ]; then
-    echo "FAIL $1: $2 exists"
-    failures=$((failures + 1))
-  else
-    passed=$((passed + 1))
-  fi
-}
 bad() {  # bad NAME REGEX ARGS... : exit 2, the message matches, no runs/ folder made
   local name="$1" regex="$2"
   shift 2
