@@ -148,4 +148,16 @@ expect_text short_zone_slower "$work/slow/metrics.json" '"passed": true'
 bad cone_under_car 'under\.csv: not drivable by this car: the yellow cone at \(-1\.0, 0\.3\) stands under the car where it starts' \
   trackdrive --track "$work/under.csv" --no-plot
 
+# a layout in surveyed (UTM) coordinates: refused before the run, naming a cone and the bound
+{
+  echo 'tag,x,y,direction,x_variance,y_variance,xy_covariance,id'
+  echo 'car_start,500000.0,5500000.0,0.0,0.0,0.0,0.0,'
+  for x in $(seq 0 5 70); do
+    echo "blue,$((500000 + x)),5500001.5,0.0,0.0,0.0,0.0,$((1000 + x))"
+    echo "yellow,$((500000 + x)),5499998.5,0.0,0.0,0.0,0.0,$((2000 + x))"
+  done
+} >"$work/utm.csv"
+bad far_layout 'utm\.csv: cone 1000 stands at \(500000\.0, 5500001\.5\): a run needs every cone within 2000 m of the origin' \
+  autocross --track "$work/utm.csv" --no-plot
+
 report
