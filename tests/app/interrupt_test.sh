@@ -102,6 +102,21 @@ expect "regress_resumed: the summary of the uninterrupted regress" \
 check resume_other 2 "$bin" regress skidpad --seeds 3 --no-plot --out "$work/cut" --resume
 expect_text resume_other "$work/err" 'runs\.json differs'
 
+# compare passes SIGTERM on to its runs: it ends within a second with 143, writes no outputs,
+# and leaves no run behind
+"$bin" compare fst --track "$tracks/fssim/FSG.yaml" --seeds 1 --jobs 2 --no-plot \
+  --out "$work/cmp" >"$work/cmp.out" 2>"$work/cmp.err" &
+pid=$!
+sleep 3
+sent=$(now_ms)
+kill -s TERM "$pid"
+wait "$pid"
+got=$? took=$(($(now_ms) - sent))
+expect "compare_interrupted: exit $got, expected 143" [ "$got" -eq 143 ]
+expect "compare_interrupted: stopped in $took ms, at most 1000" [ "$took" -le 1000 ]
+expect_missing compare_interrupted "$work/cmp/compare.json"
+expect "compare_interrupted: no run left" [ -z "$(pgrep -f -- "--out $work/cmp/")" ]
+
 # 4: cone ids near 2^63 (below and above it): the same run as with the file's small ids, and
 # the ids come out as the file gave them
 check convert 0 "$bin" track convert "$tracks/fssim/FSG.yaml" "$work/small.csv"
