@@ -22,16 +22,21 @@ expect() {  # expect NAME CONDITION_TEXT : the condition (a test expression) hol
 }
 now_ms() { date +%s%3N; }
 
-# interrupt NAME SIGNAL STATUS SCENARIO ARGS...: starts the run, waits until its loop runs (the
-# first trajectory row is kept in memory, so: 2 s), sends the signal and checks the exit within
-# a second, its status and the folder
+# interrupt NAME SIGNAL STATUS SCENARIO ARGS...: starts the run, waits until its folder is made
+# and a second more, sends the signal and checks the exit within a second, its status and the
+# folder
 interrupt() {
   local name="$1" signal="$2" status="$3"
   shift 3
   local out="$work/$name"
   "$bin" run "$@" --no-plot --out "$out" >"$work/$name.out" 2>"$work/$name.err" &
   local pid=$!
-  sleep 2
+  # the folder is made once the handlers are in place and the input is checked
+  for _ in $(seq 300); do
+    [ -d "$out" ] && break
+    sleep 0.1
+  done
+  sleep 1
   local sent
   sent=$(now_ms)
   kill -s "$signal" "$pid"
