@@ -5,14 +5,18 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <functional>
+#include <sstream>
 
 #include "sensors/lidar.hpp"
 #include "sensors/pose_history.hpp"
 #include "sensors/stereo_camera.hpp"
+#include "sim/big_layouts.hpp"
 #include "sim/run.hpp"
 #include "sim/scenario.hpp"
 #include "sim/track_commands.hpp"
 #include "sim/vehicle_sim.hpp"
+#include "tracks/io.hpp"
 
 namespace conesim::sim {
 
@@ -128,6 +132,63 @@ nlohmann::json bench_sensors(int repeats, bool closed_loop) {
                     {"closed_loop_graphslam_shadows_rtf", ">= 50"},
                     {"closed_loop_graphslam_filters_rtf", ">= 30"},
                     {"closed_loop_lidar_slam_rtf", ">= 20"}};
+  return out;
+}
+
+nlohmann::json bench_tracks(const std::vector<int>& cone_counts, int repeats,
+                            const std::filesystem::path& keep_dir) {
+  namespace fs = std::filesystem;
+  using clock = std::chrono::steady_clock;
+  const fs::path dir = keep_dir.empty() ? fs::temp_directory_path() /
+                                              ("conesim-bench-tracks-" + std::to_string(getpid()))
+                                        : keep_dir;
+  fs::create_directories(dir);
+  nlohmann::json out = {{"unit", "seconds, median of repeats"}, {"repeats", repeats}};
+  nlohmann::json rows = nlohmann::json::array();
+  for (BigLayout kind : {BigLayout::kClutter, BigLayout::kLong, BigLayout::kRandom}) {
+    for (int n : cone_counts) {
+      // the layout as a file, as a user hands it in
+      const tracks::Track made = big_layout(kind, n, 1);
+      const fs::path file = dir / (std::string(to_string(kind)) + "-" + std::to_string(n) + ".csv");
+      tracks::write_eufs_csv(made, file);
+      const fs::path converted = dir / (file.stem().string() + ".yaml");
+
+      // each command, timed from the file to its output
+      const auto median_s = [repeats](const std::function<void()>& f) {
+        std::vector<double> t;
+        for (int r = 0; r < std::max(1, repeats); ++r) {
+          const auto start = clock::now();
+          f();
+          t.push_back(std::chrono::duration<double>(clock::now() - start).count());
+        }
+        std::sort(t.begin(), t.end());
+        return t[t.size() / 2];
+      };
+      std::ostringstream sink;
+      int cones_read = 0;
+      const double validate_s =
+          median_s([&] { track_validate({file}, std::nullopt, false, sink, sink); });
+      const double info_s = median_s([&] {
+        const tracks::Track t = tracks::read_track(file);
+        cones_read = static_cast<int>(t.cones.size());
+        sink << track_info(t, std::nullopt).dump();
+      });
+      const double convert_s =
+          median_s([&] { write_track_atomically(tracks::read_track(file), converted); });
+      rows.push_back({{"layout", to_string(kind)},
+                      {"cones", cones_read},
+                      {"validate_s", validate_s},
+                      {"info_s", info_s},
+                      {"convert_s", convert_s}});
+      if (keep_dir.empty()) {
+        fs::remove(file);
+        fs::remove(converted);
+      }
+    }
+  }
+  if (keep_dir.empty()) fs::remove_all(dir);
+  out["layouts"] = rows;
+  out["target"] = "validate under 1 s at 20000 cones";
   return out;
 }
 

@@ -11,9 +11,11 @@
 
 #include "core/error.hpp"
 #include "sim/gnuplot.hpp"
+#include "sim/interrupt.hpp"
 #include "sim/process_pool.hpp"
 #include "sim/regress.hpp"
 #include "sim/report.hpp"
+#include "sim/run.hpp"
 #include "sim/scenario.hpp"
 
 namespace conesim::sim {
@@ -882,6 +884,7 @@ int run_compare(const fs::path& self, const CompareOptions& o, std::ostream& out
   const auto start = clock::now();
   const StudyPlan plan = plan_study(o);
   fs::create_directories(o.out_dir);
+  check_output_writable(o.out_dir);
   progress << plan.runs.size() << " runs, " << o.jobs << " at once, into " << o.out_dir.string()
            << "\n";
 
@@ -938,6 +941,14 @@ int run_compare(const fs::path& self, const CompareOptions& o, std::ostream& out
                  << "\n";
       });
   const double wall_s = std::chrono::duration<double>(clock::now() - start).count();
+
+  // interrupted: no outputs (they would look complete); the finished runs stay for --reuse
+  if (const int signal = interrupt_signal()) {
+    progress << "interrupted by " << signal_name(signal) << ": " << done << " of " << jobs.size()
+             << " runs finished; nothing written. Continue with: conesim compare ... --out "
+             << o.out_dir.string() << " --reuse\n";
+    return interrupted_exit_status(signal);
+  }
 
   // the outputs: the figures, then compare.json, compare.md and compare.html
   json c = compare_json(plan, results, o, wall_s);

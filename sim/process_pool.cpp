@@ -5,8 +5,14 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
 #include <fstream>
 #include <map>
+#include <thread>
+
+#include "sim/interrupt.hpp"
 
 namespace conesim::sim {
 
@@ -44,11 +50,14 @@ int exit_status(int status) {
 void run_processes(const std::vector<ProcessJob>& jobs, int parallel,
                    const std::function<void(size_t)>& on_started,
                    const std::function<void(size_t, int)>& on_done) {
-  // start while there is room, then wait for any child of ours to end
+  // start while there is room, then collect the children of ours that ended; on SIGINT or
+  // SIGTERM start nothing more, pass the signal on to the children and wait for them
   std::map<pid_t, size_t> running;
   size_t next = 0;
-  while (next < jobs.size() || !running.empty()) {
-    while (next < jobs.size() && static_cast<int>(running.size()) < std::max(parallel, 1)) {
+  int forwarded = 0;
+  while ((next < jobs.size() && interrupt_signal() == 0) || !running.empty()) {
+    while (interrupt_signal() == 0 && next < jobs.size() &&
+           static_cast<int>(running.size()) < std::max(parallel, 1)) {
       if (on_started) on_started(next);
       const pid_t pid = spawn(jobs[next].argv, jobs[next].log_file);
       if (pid > 0)
@@ -57,9 +66,18 @@ void run_processes(const std::vector<ProcessJob>& jobs, int parallel,
         on_done(next, 127);
       ++next;
     }
+    if (const int signal = interrupt_signal(); signal != 0 && forwarded != signal) {
+      for (const auto& [pid, index] : running) kill(pid, signal);
+      forwarded = signal;
+    }
     if (running.empty()) continue;
+    // polled, so that a signal arriving between the check and the wait is seen within 20 ms
     int status = 0;
-    const pid_t pid = wait(&status);
+    const pid_t pid = waitpid(-1, &status, WNOHANG);
+    if (pid == 0 || (pid < 0 && errno == EINTR)) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      continue;
+    }
     if (pid < 0) break;
     const auto it = running.find(pid);
     if (it == running.end()) continue;

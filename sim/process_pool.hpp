@@ -19,7 +19,9 @@ struct ProcessJob {
 /// Runs the jobs in order, at most `parallel` at once, and calls `on_started(index)` before
 /// each starts and `on_done(index, exit_status)` as each ends (in the order they end), both on
 /// the calling thread. The exit status is the process's code, 128 + the signal that ended it,
-/// or 127 when it could not be started.
+/// or 127 when it could not be started. On SIGINT or SIGTERM (sim/interrupt.hpp) no job
+/// starts any more, the running children get the same signal, and the call returns once they
+/// have ended: the jobs never started get no on_done.
 void run_processes(const std::vector<ProcessJob>& jobs, int parallel,
                    const std::function<void(size_t)>& on_started,
                    const std::function<void(size_t, int)>& on_done);

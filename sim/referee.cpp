@@ -253,6 +253,7 @@ enum class Boundary { kNone, kArea, kSkidpad };
 // one cone as the referee sees it
 struct RefCone {
   int id = 0;
+  uint64_t file_id = 0;
   core::ConeClass cls = core::ConeClass::kUnknown;
   Vec2 position = Vec2::Zero();
   double radius_m = 0.0;
@@ -342,7 +343,7 @@ Referee::Impl::Impl(const Track& track, core::EventType e,
   double max_radius = 0.0;
   for (const tracks::Cone& c : track.cones) {
     const double r = 0.5 * core::cone_size(c.cls).base_m;
-    cones.push_back({c.id, c.cls, c.position, r});
+    cones.push_back({c.id, track.file_id(c.id), c.cls, c.position, r});
     cone_points.push_back({c.position, c.position});
     index_of_id.emplace_back(c.id, static_cast<int>(cones.size()) - 1);
     max_radius = std::max(max_radius, r);
@@ -494,12 +495,13 @@ void Referee::Impl::judge_cones(const CarFrame& car) {
     if (dx * dx + dy * dy > cones[k].radius_m * cones[k].radius_m) continue;
     knocked[k] = 1;
     result.cones_hit.push_back(cones[k].id);
-    RefereeEvent e =
-        event_now(RefereeEvent::Kind::kConeHit,
-                  "hit " + std::string(core::to_string(cones[k].cls)) + " cone " +
-                      std::to_string(cones[k].id) + " at " + core::format_place(cones[k].position),
-                  cone_penalty_s);
+    RefereeEvent e = event_now(RefereeEvent::Kind::kConeHit,
+                               "hit " + std::string(core::to_string(cones[k].cls)) + " cone " +
+                                   std::to_string(cones[k].file_id) + " at " +
+                                   core::format_place(cones[k].position),
+                               cone_penalty_s);
     e.cone_id = cones[k].id;
+    e.cone_file_id = cones[k].file_id;
     e.cone_class = cones[k].cls;
     e.cone_position = cones[k].position;
     result.events.push_back(std::move(e));

@@ -80,8 +80,10 @@ struct RefereeEvent {
   std::string reason;
   /// Time added for it, seconds (0 for a DNF).
   double penalty_s = 0.0;
-  /// Cone hits: the cone's id, class and position.
+  /// Cone hits: the cone's id (tracks::Cone::id), the id its file gave it
+  /// (tracks::Track::file_id: what outputs show), class and position.
   int cone_id = -1;
+  uint64_t cone_file_id = 0;
   core::ConeClass cone_class = core::ConeClass::kUnknown;
   core::Vec2 cone_position = core::Vec2::Zero();
   /// Off-course: the four contact patches (FL, FR, RL, RR) when the car went off, and how long

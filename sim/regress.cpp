@@ -11,8 +11,10 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "sim/interrupt.hpp"
 #include "sim/process_pool.hpp"
 #include "sim/report.hpp"
+#include "sim/run.hpp"
 #include "sim/scenario.hpp"
 #include "tracks/io.hpp"
 #include "tracks/rules.hpp"
@@ -855,6 +857,7 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
     }
   }
   fs::create_directories(o.out_dir);
+  check_output_writable(o.out_dir);
   const RegressionPlan plan = plan_regression(self, o);
   for (const SkippedTrack& s : plan.skipped)
     progress << "skipped track " << s.track << ": " << s.reason << "\n";
@@ -881,11 +884,32 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
       if (fs::path(given).stem() == r.scenario && fs::is_regular_file(given)) argv[2] = given;
     jobs.push_back({argv, dir / "log.txt"});
   }
-  auto finish = [&](size_t i, int exit_code) {
-    exit_codes[i] = exit_code;
-    const fs::path dir = o.out_dir / runs[i].dir;
+  // the runs' command lines in runs.json: --resume continues only the same runs
+  json planned = json::array();
+  for (const ProcessJob& j : jobs) planned.push_back(j.argv);
+  const fs::path runs_file = o.out_dir / "runs.json";
+  if (o.resume) {
+    json before;
+    std::ifstream in(runs_file);
+    try {
+      if (in) in >> before;
+    } catch (const std::exception&) {
+      before = json();
+    }
+    if (before != planned)
+      throw InputError(
+          "--resume", 0,
+          !in ? runs_file.string() + " not found: --out must be the folder of an earlier regress"
+              : o.out_dir.string() +
+                    " holds the runs of another command (runs.json differs): resume with the "
+                    "same scenarios, tracks, seeds and --set values");
+  }
+  std::ofstream(runs_file) << planned.dump(1) << "\n";
+
+  // a run's metrics.json, or null when it has none (or only a broken one)
+  const auto read_metrics = [&](size_t i) {
     json m;
-    std::ifstream in(dir / "metrics.json");
+    std::ifstream in(o.out_dir / runs[i].dir / "metrics.json");
     if (in) {
       try {
         in >> m;
@@ -893,7 +917,12 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
         m = json();
       }
     }
-    const std::string tail = m.is_object() ? "" : last_log_line(dir / "log.txt");
+    return m.is_object() ? m : json();
+  };
+  const auto take_in = [&](size_t i, int exit_code, const json& m) {
+    exit_codes[i] = exit_code;
+    const std::string tail =
+        m.is_object() ? "" : last_log_line(o.out_dir / runs[i].dir / "log.txt");
     rows[i] = make_row(runs[i], m, exit_codes[i], tail);
     ++done_count;
     progress << "[" << done_count << "/" << runs.size() << "] " << runs[i].id() << ": "
@@ -902,9 +931,37 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
                                    : "FAIL")
              << "\n";
   };
+
+  // with --resume, a run that finished before is read (its exit status from its verdict, as
+  // `conesim run` gives it), the others run
+  std::vector<ProcessJob> to_run;
+  std::vector<size_t> job_run;
+  size_t reused = 0;
+  for (size_t i = 0; i < runs.size(); ++i) {
+    if (o.resume) {
+      if (const json m = read_metrics(i); m.is_object()) {
+        take_in(i, m.value("passed", false) ? 0 : 1, m);
+        ++reused;
+        continue;
+      }
+    }
+    to_run.push_back(jobs[i]);
+    job_run.push_back(i);
+  }
+  if (reused > 0) progress << reused << " runs reused from " << o.out_dir.string() << "\n";
   run_processes(
-      jobs, o.jobs, [&](size_t i) { fs::create_directories(o.out_dir / runs[i].dir); }, finish);
+      to_run, o.jobs, [&](size_t k) { fs::create_directories(o.out_dir / runs[job_run[k]].dir); },
+      [&](size_t k, int exit_code) { take_in(job_run[k], exit_code, read_metrics(job_run[k])); });
   const double wall_s = std::chrono::duration<double>(clock::now() - start).count();
+
+  // interrupted: no summary (it would look complete); the finished runs stay for --resume
+  if (const int signal = interrupt_signal()) {
+    progress << "interrupted by " << signal_name(signal) << ": " << done_count << " of "
+             << runs.size()
+             << " runs finished; no summary written. Continue with: conesim regress ... --out "
+             << o.out_dir.string() << " --resume\n";
+    return interrupted_exit_status(signal);
+  }
 
   // the verdicts, the baseline, the three summaries and the table
   std::optional<BaselineComparison> comparison;

@@ -37,6 +37,9 @@ struct RegressOptions {
   std::optional<std::filesystem::path> baseline;
   /// The command line, for summary.json.
   std::string command_line;
+  /// --resume: in an --out folder of an earlier, interrupted call with the same runs
+  /// (runs.json), the runs that wrote their metrics.json are read, not run again.
+  bool resume = false;
 };
 
 /// One run of the regression.

@@ -1,7 +1,13 @@
 #include "sim/run.hpp"
 
+#include <fcntl.h>
+#include <sys/statvfs.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <numbers>
@@ -14,6 +20,7 @@
 #include "core/error.hpp"
 #include "laptime/qss.hpp"
 #include "sim/autonomy.hpp"
+#include "sim/interrupt.hpp"
 #include "sim/lap_time_report.hpp"
 #include "sim/report.hpp"
 #include "sim/slam_runner.hpp"
@@ -52,6 +59,11 @@ void write_file_atomically(const fs::path& file, const std::string& text) {
   }
   fs::rename(partial, file);
 }
+
+// the free space a run needs at least: metrics, trajectory, track and pictures of a long run
+constexpr unsigned long long kMinFreeBytes = 16ull << 20;
+// the probe written into an output folder before a run, bytes
+constexpr size_t kProbeBytes = 64 * 1024;
 
 // the longest a run of this event may take before the referee must have ruled
 double hard_stop_s(const Scenario& s) {
@@ -132,6 +144,13 @@ std::vector<std::string> check_pass(const PassCriteria& pass, const RefereeResul
   return failures;
 }
 
+// the ids the cones' file gave them (what a user knows them by)
+std::vector<uint64_t> file_ids(const tracks::Track& track, const std::vector<int>& ids) {
+  std::vector<uint64_t> out;
+  for (int id : ids) out.push_back(track.file_id(id));
+  return out;
+}
+
 // the referee's events for metrics.json: kind, time, lap, the car's pose, reason, penalty, and
 // the cone or the wheels
 nlohmann::json events_json(const std::vector<RefereeEvent>& events) {
@@ -146,7 +165,7 @@ nlohmann::json events_json(const std::vector<RefereeEvent>& events) {
                         {"reason", e.reason},
                         {"penalty_s", e.penalty_s}};
     if (e.kind == RefereeEvent::Kind::kConeHit) {
-      j["cone_id"] = e.cone_id;
+      j["cone_id"] = e.cone_file_id;
       j["cone_class"] = std::string(core::to_string(e.cone_class));
       j["cone_x_m"] = round_to(e.cone_position.x(), 1e-3);
       j["cone_y_m"] = round_to(e.cone_position.y(), 1e-3);
@@ -163,6 +182,64 @@ nlohmann::json events_json(const std::vector<RefereeEvent>& events) {
 }
 
 }  // namespace
+
+std::string run_bounds_problem(const tracks::Track& track) {
+  const auto outside = [](const core::Vec2& p) {
+    return !(std::abs(p.x()) <= kMaxRunCoordinateM && std::abs(p.y()) <= kMaxRunCoordinateM);
+  };
+  char buf[300];
+  for (const tracks::Cone& c : track.cones)
+    if (outside(c.position)) {
+      std::snprintf(buf, sizeof(buf),
+                    "cone %llu stands at (%.1f, %.1f): a run needs every cone within %.0f m of "
+                    "the origin on x and y (the sensors work in single precision); move the "
+                    "layout's origin near the track",
+                    static_cast<unsigned long long>(track.file_id(c.id)), c.position.x(),
+                    c.position.y(), kMaxRunCoordinateM);
+      return buf;
+    }
+  if (outside(track.start.position())) {
+    std::snprintf(buf, sizeof(buf),
+                  "the start (%.1f, %.1f) is more than %.0f m from the origin on x or y",
+                  track.start.x, track.start.y, kMaxRunCoordinateM);
+    return buf;
+  }
+  return {};
+}
+
+void check_output_writable(const fs::path& folder) {
+  const auto refuse = [&folder](const std::string& why) {
+    throw core::InputError(folder.string(), 0, "cannot write the results here: " + why);
+  };
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) refuse("not a folder");
+
+  // a probe file written, flushed to the disk and removed (a full disk fails the write or the
+  // flush; a read-only one the open)
+  const fs::path probe = folder / (".conesim-probe-" + std::to_string(getpid()));
+  const int fd = open(probe.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) refuse(std::strerror(errno));
+  const std::string block(kProbeBytes, '\n');
+  const ssize_t written = write(fd, block.data(), block.size());
+  const int write_errno = errno;
+  const bool synced = written == static_cast<ssize_t>(block.size()) && fsync(fd) == 0;
+  const int sync_errno = errno;
+  close(fd);
+  fs::remove(probe, ec);
+  if (written != static_cast<ssize_t>(block.size()))
+    refuse(written < 0 ? std::strerror(write_errno) : "the disk is full");
+  if (!synced) refuse(std::strerror(sync_errno));
+
+  // and room for the results
+  struct statvfs space {};
+  if (statvfs(folder.c_str(), &space) == 0) {
+    const unsigned long long free_bytes =
+        static_cast<unsigned long long>(space.f_bavail) * space.f_frsize;
+    if (free_bytes < kMinFreeBytes)
+      refuse(std::to_string(free_bytes >> 10) + " KiB free, a run needs at least " +
+             std::to_string(kMinFreeBytes >> 20) + " MiB");
+  }
+}
 
 namespace {
 
@@ -189,8 +266,8 @@ std::string acceleration_problem(const Scenario& s, const tracks::Track& track,
   // the speed at the line: the driver's cap, or what the car reaches from a standing start
   std::vector<double> along, flat;
   for (double x = 0.0; x <= finish_along; x += 1.0) along.push_back(x), flat.push_back(0.0);
-  const laptime::SpeedTrace launch = laptime::standing_start(
-      along, flat, vehicle_models::PerformanceEnvelope::of(s.vehicle, 1.0));
+  const laptime::SpeedTrace launch =
+      laptime::standing_start(along, flat, vehicle_models::PerformanceEnvelope::of(s.vehicle, 1.0));
   const double v = std::min(s.driver.acceleration_speed_mps, launch.speed_mps.back());
   const double stop_m = control::acceleration_stop_past_finish_m(s.driver, geometry, v);
   if (stop_m <= zone_m) return {};
@@ -198,9 +275,8 @@ std::string acceleration_problem(const Scenario& s, const tracks::Track& track,
   double lo = 0.0, hi = v;
   for (int i = 0; i < 40; ++i) {
     const double mid = 0.5 * (lo + hi);
-    (control::acceleration_stop_past_finish_m(s.driver, geometry, mid) <= zone_m - 0.5
-         ? lo
-         : hi) = mid;
+    (control::acceleration_stop_past_finish_m(s.driver, geometry, mid) <= zone_m - 0.5 ? lo : hi) =
+        mid;
   }
   char buf[400];
   std::snprintf(buf, sizeof(buf),
@@ -208,8 +284,8 @@ std::string acceleration_problem(const Scenario& s, const tracks::Track& track,
                 "driver, crossing the line at %.1f m/s, stops %.1f m past it (it brakes for "
                 "FSG's %.0f m zone, whose end it cannot see in time); it fits with "
                 "driver.acceleration_speed_mps=%.0f",
-                zone_m, core::format_place(finish_mid).c_str(), core::format_place(last).c_str(),
-                v, stop_m, tracks::kAccelerationBrakingZoneM, std::floor(lo));
+                zone_m, core::format_place(finish_mid).c_str(), core::format_place(last).c_str(), v,
+                stop_m, tracks::kAccelerationBrakingZoneM, std::floor(lo));
   return buf;
 }
 
@@ -237,9 +313,11 @@ std::string drivability_problem(const Scenario& s, const tracks::Track& track) {
                                0.5 * geometry.width_m, 0.0};
   const core::Pose2 rear_axle = track.start.compose({-geometry.rear_axle_to_front_m, 0.0, 0.0});
   for (const tracks::Cone& c : track.cones) {
-    if (control::footprint_clearance(rear_axle, {{c.id, c.cls, c.position, Eigen::Matrix2d::Zero()}}, car) < 0.0)
+    if (control::footprint_clearance(
+            rear_axle, {{c.id, c.cls, c.position, Eigen::Matrix2d::Zero()}}, car) < 0.0)
       return "the " + std::string(core::to_string(c.cls)) + " cone at " +
-             core::format_place(c.position) + " stands under the car where it starts (front wing at " +
+             core::format_place(c.position) +
+             " stands under the car where it starts (front wing at " +
              core::format_place(track.start.position()) + ")";
   }
   if (s.event == core::EventType::kAcceleration) return acceleration_problem(s, track, geometry);
@@ -306,6 +384,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   fs::create_directories(options.out_dir);
   // a metrics.json from an earlier run in the same folder would look like this run's result
   fs::remove(options.out_dir / "metrics.json");
+  fs::remove(options.out_dir / kIncompleteFile);
 
   // the world: the car with its front wing on the start pose, the referee and the driver
   const vehicle_models::VehicleParams& vp = s.vehicle;
@@ -381,7 +460,10 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   TimeUs t = 0;
   core::VehicleCommand command;
   auto last_progress = wall_start;
+  int interrupted_by = 0;
   while (dnf_override.empty() && !referee.finished()) {
+    // Ctrl-C or SIGTERM: the handler only set the flag, the loop stops here
+    if ((interrupted_by = interrupt_signal()) != 0) break;
     if (t % driver_period_us == 0) {
       // a perception plug-in that failed on a frame collected by now ends the run
       if (!rig.failure().empty()) {
@@ -510,9 +592,26 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       break;
     }
   }
+  const double wall_s = std::chrono::duration<double>(clock::now() - wall_start).count();
+
+  // interrupted: no verdict, no metrics.json; the queued work is dropped and the folder says
+  // why it is incomplete (a run folder without metrics.json did not finish)
+  if (interrupted_by != 0) {
+    if (slam) slam->abandon();
+    RunResult result;
+    result.interrupted_by = interrupted_by;
+    result.sim_time_s = core::to_seconds(t);
+    result.wall_time_s = wall_s;
+    char why[200];
+    std::snprintf(why, sizeof(why),
+                  "interrupted by %s at sim time %.3f s (%.1f s wall): this run did not finish "
+                  "and wrote no metrics.json\n",
+                  signal_name(interrupted_by), result.sim_time_s, wall_s);
+    std::ofstream(options.out_dir / kIncompleteFile) << why;
+    return result;
+  }
   rig.finish();
   if (slam) slam->finish();
-  const double wall_s = std::chrono::duration<double>(clock::now() - wall_start).count();
 
   // the verdict and the pass criteria
   RunResult result;
@@ -556,7 +655,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       {"lap_times_s", lap_times},
       {"penalties",
        {{"cones_hit", r.cones_hit.size()},
-        {"cones_hit_ids", r.cones_hit},
+        {"cones_hit_ids", file_ids(track, r.cones_hit)},
         {"off_course", r.off_course},
         {"penalty_time_s", round_to(r.final_time_s - r.raw_time_s, 1e-3)}}},
       {"events", events_json(r.events)},
@@ -628,6 +727,11 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
 
   // the pictures after the results: one that fails (no gnuplot) is a warning, the result stands
   auto picture = [&result](const std::string& what, const std::function<void()>& draw) {
+    // interrupted once the results are written: the pictures are left out, the run stands
+    if (const int signal = interrupt_signal()) {
+      result.warnings.push_back(what + " not written: interrupted by " + signal_name(signal));
+      return;
+    }
     try {
       draw();
     } catch (const std::exception& e) {
@@ -653,7 +757,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       switch (e.kind) {
         case RefereeEvent::Kind::kConeHit:
           overlay.marks.push_back(
-              {Kind::kConeHit, e.cone_position, "cone " + std::to_string(e.cone_id) + lap});
+              {Kind::kConeHit, e.cone_position, "cone " + std::to_string(e.cone_file_id) + lap});
           break;
         case RefereeEvent::Kind::kOffCourse:
           overlay.marks.push_back({Kind::kOffCourse, car_centre,

@@ -62,7 +62,18 @@ struct RunResult {
   nlohmann::json metrics;
   /// What went wrong without touching the result (a picture gnuplot could not draw).
   std::vector<std::string> warnings;
+  /// The signal (SIGINT, SIGTERM) that stopped the run before its verdict, 0 when none did: the
+  /// folder then has no metrics.json and an INCOMPLETE file that says why.
+  int interrupted_by = 0;
 };
+
+/// The file an interrupted run leaves in its folder instead of metrics.json.
+inline constexpr const char* kIncompleteFile = "INCOMPLETE";
+
+/// Refuses (core::InputError, exit 2) an output folder a run could not write its results to:
+/// a probe file is written, flushed to the disk and removed, so that a read-only or full
+/// location is named before the run starts rather than after it.
+void check_output_writable(const std::filesystem::path& folder);
 
 /// Builds the track a scenario asks for (its file, the FSG layout or a generated circuit).
 tracks::Track scenario_track(const Scenario& scenario);
@@ -78,6 +89,15 @@ core::ConeObservations perceive_ground_truth(const tracks::Track& track, const c
 /// e.g. "lanes 1.90 m apart at (12.3, -4.5), the car needs 1.83 m"; empty when it can or when
 /// the event is not a circuit.
 std::string drivability_problem(const Scenario& scenario, const tracks::Track& track);
+
+/// Farthest a cone or the start may stand from the track frame's origin in a run, metres: the
+/// LiDAR and the camera work in single precision (millimetres up to here), and the referee's
+/// grids cost memory by the layout's extent. Surveyed layouts in UTM coordinates are moved to
+/// a local origin first.
+inline constexpr double kMaxRunCoordinateM = 2000.0;
+
+/// Why a layout is beyond what a run handles (kMaxRunCoordinateM), empty when it is not.
+std::string run_bounds_problem(const tracks::Track& track);
 
 /// Runs the scenario on the track to the referee's verdict and writes trajectory.csv, track.csv
 /// and metrics.json (last of the results, so a run that stops early leaves none; an earlier one

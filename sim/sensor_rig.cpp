@@ -1,11 +1,12 @@
 #include "sim/sensor_rig.hpp"
 
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <stdexcept>
-#include <array>
 
 #include "sensors/png_writer.hpp"
 #include "sim/gnuplot.hpp"
@@ -68,8 +69,8 @@ void write_pcd(const fs::path& file, const core::PointCloud& cloud,
   char row[160];
   for (size_t i = 0; i < n; ++i) {
     const auto& p = cloud.points[i];
-    std::snprintf(row, sizeof(row), "%.4f %.4f %.4f %.1f %u %.6f %d\n", p.x, p.y, p.z,
-                  p.intensity, static_cast<unsigned>(p.ring), p.time_offset_s, labels.cone_id[i]);
+    std::snprintf(row, sizeof(row), "%.4f %.4f %.4f %.1f %u %.6f %d\n", p.x, p.y, p.z, p.intensity,
+                  static_cast<unsigned>(p.ring), p.time_offset_s, labels.cone_id[i]);
     text += row;
   }
   write_text(file, text);
@@ -79,11 +80,16 @@ void write_pcd(const fs::path& file, const core::PointCloud& cloud,
 void draw_boxes(const slam::frontend::StereoDetections& detections, core::RgbImage& image) {
   auto colour = [](core::ConeClass c) -> std::array<uint8_t, 3> {
     switch (c) {
-      case core::ConeClass::kBlue: return {40, 90, 255};
-      case core::ConeClass::kYellow: return {255, 230, 0};
-      case core::ConeClass::kOrangeSmall: return {255, 120, 0};
-      case core::ConeClass::kOrangeBig: return {255, 0, 160};
-      case core::ConeClass::kUnknown: break;
+      case core::ConeClass::kBlue:
+        return {40, 90, 255};
+      case core::ConeClass::kYellow:
+        return {255, 230, 0};
+      case core::ConeClass::kOrangeSmall:
+        return {255, 120, 0};
+      case core::ConeClass::kOrangeBig:
+        return {255, 0, 160};
+      case core::ConeClass::kUnknown:
+        break;
     }
     return {255, 255, 255};
   };
@@ -164,8 +170,10 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
   if (s.sensors.lidar_enabled || raw_lidar || tap_lidar || dump_.sensors.count("lidar")) {
     auto config = sensors::lidar_preset(s.sensors.lidar_model);
     const auto mount = sensors::lidar_mount_preset(s.sensors.lidar_mount);
-    if (!config) throw std::invalid_argument("sensors.lidar.model: unknown model " + s.sensors.lidar_model);
-    if (!mount) throw std::invalid_argument("sensors.lidar.mount: unknown mount " + s.sensors.lidar_mount);
+    if (!config)
+      throw std::invalid_argument("sensors.lidar.model: unknown model " + s.sensors.lidar_model);
+    if (!mount)
+      throw std::invalid_argument("sensors.lidar.mount: unknown mount " + s.sensors.lidar_mount);
     config->mount = *mount;
     lidar_mount_ = *mount;
     lidar_ = std::make_unique<sensors::Lidar>(*config, track);
@@ -291,34 +299,28 @@ void SensorRig::end_sweep() {
       plugin_lidar && !perception_->uses_camera() ? perception_.get() : nullptr;
   const slam::frontend::SweepMotion motion =
       perception_ ? perception_->motion() : slam::frontend::SweepMotion{};
-  pending_scan_ =
-      worker_->post([this, sweep = casting_, start, begin, columns, detector, plugin, motion, end,
-                     window = pose_window(lidar_->column_time(start, begin), end)] {
-        sweep->cast(*lidar_, lidar_rng_, start, begin, columns, window);
-        SweepResult r{std::move(sweep->scan),
-                      std::nullopt,
-                      sweep->cast_ms,
-                      0.0,
-                      std::nullopt,
-                      {},
-                      end,
-                      motion};
-        if (detector) {
-          const auto t0 = clock::now();
-          r.detections = detector->detect(r.scan.cloud, motion);
-          r.detect_ms = ms_between(t0, clock::now());
-        }
-        if (plugin) {
-          const auto t0 = clock::now();
-          try {
-            r.plugin_frame = plugin->plugin_lidar(r.scan.cloud, end, motion);
-          } catch (const PluginFailure& e) {
-            r.plugin_failure = e.what();
-          }
-          r.detect_ms = ms_between(t0, clock::now());
-        }
-        return r;
-      });
+  pending_scan_ = worker_->post([this, sweep = casting_, start, begin, columns, detector, plugin,
+                                 motion, end,
+                                 window = pose_window(lidar_->column_time(start, begin), end)] {
+    sweep->cast(*lidar_, lidar_rng_, start, begin, columns, window);
+    SweepResult r{
+        std::move(sweep->scan), std::nullopt, sweep->cast_ms, 0.0, std::nullopt, {}, end, motion};
+    if (detector) {
+      const auto t0 = clock::now();
+      r.detections = detector->detect(r.scan.cloud, motion);
+      r.detect_ms = ms_between(t0, clock::now());
+    }
+    if (plugin) {
+      const auto t0 = clock::now();
+      try {
+        r.plugin_frame = plugin->plugin_lidar(r.scan.cloud, end, motion);
+      } catch (const PluginFailure& e) {
+        r.plugin_failure = e.what();
+      }
+      r.detect_ms = ms_between(t0, clock::now());
+    }
+    return r;
+  });
 
   // the next sweep
   sweep_start_ += lidar_->config().sweep_period_us();
@@ -405,6 +407,12 @@ void SensorRig::dump_sweep(int index, const sensors::LidarScan& scan,
       {"sensor_in_track_at_end", pose3_json(scan.labels.sensor_pose_end)},
       {"true_sensor_pose_at_start", pose2_json(scan.labels.sensor_pose_start.planar())}};
   nlohmann::json with_detections = sidecar;
+  // the PCD labels are the track's cone numbers: the id the track file gave each one beside
+  std::set<int> labels(scan.labels.cone_id.begin(), scan.labels.cone_id.end());
+  nlohmann::json cone_ids = nlohmann::json::object();
+  for (int label : labels)
+    if (label >= 0) cone_ids[std::to_string(label)] = track_.file_id(label);
+  with_detections["label_cone_ids"] = cone_ids;
   // the detector's cones, in the sensor frame at the sweep's end
   PlotData found{"detections", {}};
   if (detections) {
@@ -455,9 +463,9 @@ void SensorRig::dump_sweep(int index, const sensors::LidarScan& scan,
 void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& referee) {
   using clock = std::chrono::steady_clock;
   const auto start = clock::now();
-  camera_->render(car.data(), car.vehicle_pose3(), t,
-                  [&referee](int id) { return referee.is_knocked(id); },
-                  with_depth_, frame_, frame_labels_);
+  camera_->render(
+      car.data(), car.vehicle_pose3(), t, [&referee](int id) { return referee.is_knocked(id); },
+      with_depth_, frame_, frame_labels_);
   stats_.camera_ms_total += std::chrono::duration<double, std::milli>(clock::now() - start).count();
   const int index = stats_.camera_frames++;
   if (tap_ && tap_->kinds().camera) tap_->on_stereo(t + camera_latency_us_, to_sdk(frame_));
@@ -499,22 +507,26 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
   core::RgbImage left = frame_.left;
   if (detections) draw_boxes(*detections, left);
   for (const auto& [side, image] : {std::pair{"left", &left}, {"right", &frame_.right}}) {
-    const std::string error = sensors::write_png((dir / side / frame_name(index, "png")).string(), *image);
+    const std::string error =
+        sensors::write_png((dir / side / frame_name(index, "png")).string(), *image);
     if (!error.empty()) throw std::runtime_error(error);
   }
   const auto& k = frame_.intrinsics;
-  const nlohmann::json sidecar = {
-      {"stamp_us", t},
-      {"intrinsics",
-       {{"width_px", k.width_px}, {"height_px", k.height_px}, {"fx", k.fx}, {"fy", k.fy},
-        {"cx", k.cx}, {"cy", k.cy}}},
-      {"baseline_m", frame_.baseline_m},
-      {"left_in_vehicle", pose3_json(frame_.left_in_vehicle)},
-      {"right_in_vehicle", pose3_json(frame_.right_in_vehicle)},
-      {"left_in_track", pose3_json(frame_labels_.left_in_track)},
-      {"right_in_track", pose3_json(frame_labels_.right_in_track)},
-      {"true_vehicle_pose", pose2_json(car.truth().pose)},
-      {"camera_frame", "x right, y down, z forward (OpenCV)"}};
+  const nlohmann::json sidecar = {{"stamp_us", t},
+                                  {"intrinsics",
+                                   {{"width_px", k.width_px},
+                                    {"height_px", k.height_px},
+                                    {"fx", k.fx},
+                                    {"fy", k.fy},
+                                    {"cx", k.cx},
+                                    {"cy", k.cy}}},
+                                  {"baseline_m", frame_.baseline_m},
+                                  {"left_in_vehicle", pose3_json(frame_.left_in_vehicle)},
+                                  {"right_in_vehicle", pose3_json(frame_.right_in_vehicle)},
+                                  {"left_in_track", pose3_json(frame_labels_.left_in_track)},
+                                  {"right_in_track", pose3_json(frame_labels_.right_in_track)},
+                                  {"true_vehicle_pose", pose2_json(car.truth().pose)},
+                                  {"camera_frame", "x right, y down, z forward (OpenCV)"}};
   nlohmann::json with_detections = sidecar;
   if (detections) {
     nlohmann::json cones = nlohmann::json::array();
@@ -532,8 +544,8 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
 
 void SensorRig::sense_cones(TimeUs t, const VehicleSim& car, const Referee& referee) {
   const core::Pose2 pose = car.truth().pose;
-  auto [obs, labels] = cone_sensor_->sample(track_, pose, t,
-                                            [&referee](int id) { return referee.is_knocked(id); });
+  auto [obs, labels] =
+      cone_sensor_->sample(track_, pose, t, [&referee](int id) { return referee.is_knocked(id); });
   const int index = stats_.cone_frames++;
   if (dump_.sensors.count("detections") && index % dump_.every == 0) {
     nlohmann::json cones = nlohmann::json::array();
@@ -543,7 +555,9 @@ void SensorRig::sense_cones(TimeUs t, const VehicleSim& car, const Referee& refe
                        {"y", o.position.y()},
                        {"class", std::string(core::to_string(o.cls))},
                        {"covariance", {o.covariance(0, 0), o.covariance(0, 1), o.covariance(1, 1)}},
-                       {"true_cone_id", labels.cone_id[i]}});
+                       {"true_cone_id", labels.cone_id[i] < 0
+                                            ? nlohmann::json(labels.cone_id[i])
+                                            : nlohmann::json(track_.file_id(labels.cone_id[i]))}});
     }
     const nlohmann::json frame = {{"stamp_us", t},
                                   {"delivered_us", t + cone_latency_us_},

@@ -29,7 +29,10 @@ void write_slam_figures(const SlamScorer& scorer, const tracks::Track& track,
       const auto& c = m.estimate;
       csv << c.id << "," << core::to_string(c.cls) << "," << c.position.x() << "," << c.position.y()
           << "," << c.covariance(0, 0) << "," << c.covariance(0, 1) << "," << c.covariance(1, 1)
-          << "," << m.true_cone_id << "," << m.error_m << "\n";
+          << ","
+          << (m.true_cone_id < 0 ? std::string("-1")
+                                 : std::to_string(track.file_id(m.true_cone_id)))
+          << "," << m.error_m << "\n";
     }
   }
 

@@ -345,6 +345,10 @@ void SlamRunner::finish() {
   }
 }
 
+void SlamRunner::abandon() {
+  for (auto& lane : lanes_) lane->thread->drop_queued();
+}
+
 void SlamRunner::take_in(Lane& lane, DeliveredDetections frame, UpdateResult update) {
   if (lane.driving && failure_.empty()) failure_ = update.failure;
   lane.last_estimate = update.estimate;

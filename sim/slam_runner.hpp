@@ -64,6 +64,10 @@ class SlamRunner {
   /// Takes in every update still running (at the end of a run, before metrics()).
   void finish();
 
+  /// An interrupted run: drops the updates and scoring still queued on the lanes' threads, so
+  /// that the run ends after the update in progress. Nothing may be read afterwards.
+  void abandon();
+
   /// The driving estimate at time t: the back-end's, moved forward by the odometry since its
   /// last frame. With `motion`, also the odometry's motion at t for perception: the speed
   /// averaged over the last 0.1 s (a sweep; single encoder samples are coarse) and the yaw rate.

@@ -18,6 +18,15 @@ void WorkerThread::wait_idle() {
   post([] {}).wait();
 }
 
+void WorkerThread::drop_queued() {
+  // destroyed outside the lock: a job's captures may be large
+  std::deque<std::function<void()>> dropped;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    dropped.swap(jobs_);
+  }
+}
+
 void WorkerThread::enqueue(std::function<void()> job) {
   {
     std::lock_guard<std::mutex> lock(mutex_);

@@ -38,6 +38,10 @@ class WorkerThread {
   /// Waits until every job posted so far has run.
   void wait_idle();
 
+  /// Drops the jobs not yet started (their futures report a broken promise); the one running
+  /// finishes. An interrupted run stops this way instead of working through a backlog.
+  void drop_queued();
+
  private:
   void enqueue(std::function<void()> job);
   void run();

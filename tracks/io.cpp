@@ -13,9 +13,11 @@
 #include <limits>
 #include <map>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <string_view>
 #include <system_error>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -23,6 +25,7 @@
 #include "tracks/fsg_layouts.hpp"
 #include "tracks/lanes.hpp"
 #include "tracks/rules.hpp"
+#include "tracks/spatial_index.hpp"
 
 namespace conesim::tracks {
 
@@ -41,8 +44,6 @@ constexpr double kOverlapToleranceM = 0.02;
 constexpr double kMaxCoordinateM = 1e7;
 /// No centre line is derived along lanes longer than this (real courses are under 2 km).
 constexpr double kMaxLaneLengthM = 20e3;
-/// Largest cone id read from a file (ids above it could overflow when more are assigned).
-constexpr int kMaxConeId = 999'999'999;
 
 constexpr std::array<std::string_view, 7> kEufsColumns{
     "tag", "x", "y", "direction", "x_variance", "y_variance", "xy_covariance"};
@@ -174,42 +175,69 @@ class ConeSink {
     return track_.cones.back().id;
   }
 
-  /// Adds a cone with the id the file gives (id < 0: none given, one is assigned by finish()).
-  void add_with_id(ConeClass cls, const Vec2& p, int line,
-                   std::optional<Eigen::Matrix2d> covariance, int id) {
+  /// Adds a cone whose file gives it an id (nullopt: none given, finish() gives it one after
+  /// the largest); the cone's own id is the next in file order. Returns that id, nullopt when
+  /// the cone repeats one already read.
+  std::optional<int> add_with_file_id(ConeClass cls, const Vec2& p, int line,
+                                      std::optional<Eigen::Matrix2d> covariance,
+                                      std::optional<uint64_t> file_id) {
     // an explicit id must be unique
-    if (id >= 0) {
-      const auto [it, fresh] = id_lines_.emplace(id, line);
+    if (file_id) {
+      const auto [it, fresh] = id_lines_.emplace(*file_id, line);
       if (!fresh)
-        throw InputError(
-            file_, line,
-            "id: " + std::to_string(id) + " is already used on line " + std::to_string(it->second));
+        throw InputError(file_, line,
+                         "id: " + std::to_string(*file_id) + " is already used on line " +
+                             std::to_string(it->second));
     }
-    if (!push(cls, p, line, covariance)) return;
-    track_.cones.back().id = id;
-    if (id < 0) without_id_.push_back(track_.cones.size() - 1);
+    const std::optional<int> id = add_in_order(cls, p, line, covariance);
+    if (!id) return std::nullopt;
+    if (file_id)
+      track_.file_ids.emplace(*id, *file_id);
+    else
+      without_file_id_.push_back(*id);
+    return id;
   }
 
-  /// Gives cones read without an id the ids after the largest one; throws when there are none.
+  /// Gives cones read without a file id the free ids after the largest one (when the file gave
+  /// any); throws when there are no cones.
   void finish() {
     if (track_.cones.empty()) throw InputError(file_, 0, "expected at least one cone, found none");
-    int next = track_.next_id();
-    for (size_t i : without_id_) track_.cones[i].id = next++;
+    if (id_lines_.empty()) return;
+    uint64_t next = id_lines_.rbegin()->first;
+    for (int id : without_file_id_) {
+      do ++next;  // wraps past 2^64 - 1 to 0: the set holds at most kMaxTrackCones ids
+      while (id_lines_.count(next) > 0);
+      track_.file_ids.emplace(id, next);
+    }
   }
 
  private:
   // appends the cone unless it repeats one of its class
   bool push(ConeClass cls, const Vec2& p, int line, std::optional<Eigen::Matrix2d> covariance) {
-    // refuse layouts far beyond any real one (the lane search is quadratic)
+    // refuse layouts far beyond any real one
     if (track_.cones.size() >= kMaxTrackCones)
       throw InputError(file_, line, "more than " + std::to_string(kMaxTrackCones) + " cones");
 
-    // the same cone listed twice (exactly, or where the two would overlap): keep the first
+    // the same cone listed twice (exactly, or where the two would overlap): keep the first.
+    // The cones read so far are looked up in a grid of cells as wide as the largest base, so
+    // that the check costs the same for every cone whatever the layout's size
     const double overlap_m = core::cone_size(cls).base_m - kOverlapToleranceM;
-    for (const Cone& c : track_.cones) {
-      if (c.cls != cls) continue;
+    const auto cell_of = [](double v) { return static_cast<int64_t>(std::floor(v / kCellM)); };
+    const int64_t cx = cell_of(p.x()), cy = cell_of(p.y());
+    const Cone* repeated = nullptr;  // the first read of those it repeats
+    for (int64_t dx = -1; dx <= 1; ++dx)
+      for (int64_t dy = -1; dy <= 1; ++dy) {
+        const auto it = grid_.find(cell_key(cx + dx, cy + dy));
+        if (it == grid_.end()) continue;
+        for (size_t k : it->second) {
+          const Cone& c = track_.cones[k];
+          if (c.cls != cls || (c.position - p).norm() > overlap_m) continue;
+          if (!repeated || &c < repeated) repeated = &c;
+        }
+      }
+    if (repeated) {
+      const Cone& c = *repeated;
       const double apart = (c.position - p).norm();
-      if (apart > overlap_m) continue;
       std::string what = file_ + ":" + std::to_string(line) + ": repeats the " +
                          std::string(core::to_string(cls)) + " cone at " + format_point(c.position);
       if (apart > 0.01) {
@@ -220,15 +248,25 @@ class ConeSink {
       track_.warnings.push_back(what + "; copy dropped");
       return false;
     }
+    grid_[cell_key(cx, cy)].push_back(track_.cones.size());
     track_.cones.push_back({-1, cls, p, covariance});
     return true;
   }
 
+  static uint64_t cell_key(int64_t cx, int64_t cy) {
+    return (static_cast<uint64_t>(cx) << 32) ^ static_cast<uint32_t>(cy);
+  }
+
+  // a grid cell's width: at least the largest cone base, metres
+  static constexpr double kCellM = 0.3;
+  std::unordered_map<uint64_t, std::vector<size_t>> grid_;
+
   Track& track_;
   const std::string& file_;
   int next_id_ = 0;
-  std::map<int, int> id_lines_;
-  std::vector<size_t> without_id_;
+  // the file's ids and their lines
+  std::map<uint64_t, int> id_lines_;
+  std::vector<int> without_file_id_;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -330,25 +368,28 @@ struct Given {
 };
 
 // position along the track: arc length on a circuit's centre line, else distance along the start
-double along_track_m(const Track& track, const Vec2& p) {
-  const std::vector<Vec2>& line = track.centre_line;
-  if (!track.closed || line.size() < 2)
-    return (p - track.start.position()).dot(track.start.heading());
-  double best_d2 = std::numeric_limits<double>::infinity(), best_s = 0.0, s = 0.0;
-  for (size_t i = 0; i < line.size(); ++i) {
-    const Vec2 a = line[i];
-    const Vec2 ab = line[(i + 1) % line.size()] - a;
-    const double len = ab.norm();
-    const double t = len > 0.0 ? std::clamp((p - a).dot(ab) / (len * len), 0.0, 1.0) : 0.0;
-    const double d2 = (p - (a + t * ab)).squaredNorm();
-    if (d2 < best_d2) {
-      best_d2 = d2;
-      best_s = s + t * len;
-    }
-    s += len;
+class AlongTrack {
+ public:
+  explicit AlongTrack(const Track& track)
+      : track_(track), index_(track.centre_line, true), s_(track.centre_line.size() + 1, 0.0) {
+    const std::vector<Vec2>& line = track.centre_line;
+    for (size_t i = 0; i < line.size(); ++i)
+      s_[i + 1] = s_[i] + (line[(i + 1) % line.size()] - line[i]).norm();
   }
-  return best_s;
-}
+
+  double at(const Vec2& p) const {
+    const std::vector<Vec2>& line = track_.centre_line;
+    if (!track_.closed || line.size() < 2)
+      return (p - track_.start.position()).dot(track_.start.heading());
+    const PolylineIndex::Nearest n = index_.nearest(p);
+    return s_[n.segment] + n.t * (s_[n.segment + 1] - s_[n.segment]);
+  }
+
+ private:
+  const Track& track_;
+  PolylineIndex index_;
+  std::vector<double> s_;
+};
 
 // direction of the centre line at its point nearest p
 std::optional<double> centre_line_yaw(const Track& track, const Vec2& p) {
@@ -437,15 +478,18 @@ void finish(Track& track, const Given& given) {
   }
 
   // gates: left post on the left of travel, made gates in the order they are passed
-  for (Gate& gate : track.timing_gates) {
-    const Vec2 middle = 0.5 * (gate.left + gate.right);
-    if ((gate.left - gate.right).dot(left_direction_at(track, middle)) < 0.0)
-      std::swap(gate.left, gate.right);
+  std::vector<Vec2> middles;
+  for (const Gate& gate : track.timing_gates) middles.push_back(0.5 * (gate.left + gate.right));
+  const std::vector<Vec2> lefts = left_directions_at(track, middles);
+  for (size_t i = 0; i < track.timing_gates.size(); ++i) {
+    Gate& gate = track.timing_gates[i];
+    if ((gate.left - gate.right).dot(lefts[i]) < 0.0) std::swap(gate.left, gate.right);
   }
   if (!given.gates) {
+    const AlongTrack along(track);
     std::vector<std::pair<double, Gate>> keyed;
     for (const Gate& g : track.timing_gates)
-      keyed.emplace_back(along_track_m(track, 0.5 * (g.left + g.right)), g);
+      keyed.emplace_back(along.at(0.5 * (g.left + g.right)), g);
     std::stable_sort(keyed.begin(), keyed.end(),
                      [](const auto& a, const auto& b) { return a.first < b.first; });
     for (size_t i = 0; i < keyed.size(); ++i) track.timing_gates[i] = keyed[i].second;
@@ -802,34 +846,31 @@ Track parse_eufs(const std::string& text, const std::string& file, Track track) 
       sink.add_in_order(*cls, {x, y}, line, covariance);
       continue;
     }
-    int id = -1;
+    std::optional<uint64_t> file_id;
     const std::string_view id_text = f[7];
     if (!id_text.empty()) {
-      const auto [end, ec] = std::from_chars(id_text.data(), id_text.data() + id_text.size(), id);
-      if (ec != std::errc() || end != id_text.data() + id_text.size() || id < 0 || id > kMaxConeId)
-        throw InputError(
-            file, line,
-            "id: expected an integer from 0 to 999999999, found '" + std::string(id_text) + "'");
+      uint64_t value = 0;
+      const auto [end, ec] =
+          std::from_chars(id_text.data(), id_text.data() + id_text.size(), value);
+      if (ec != std::errc() || end != id_text.data() + id_text.size())
+        throw InputError(file, line,
+                         "id: expected an integer from 0 to 18446744073709551615, found '" +
+                             std::string(id_text) + "'");
+      file_id = value;
     }
-    sink.add_with_id(*cls, {x, y}, line, covariance, id);
+    const std::optional<int> id = sink.add_with_file_id(*cls, {x, y}, line, covariance, file_id);
 
-    // the lane the cone belongs to, in file order
+    // the lane the cone belongs to, in file order (a cone dropped as a repeat is in none)
     if (has_lane && !f[8].empty()) {
       if (f[8] != "left" && f[8] != "right")
         throw InputError(
             file, line, "lane: expected left, right or nothing, found '" + std::string(f[8]) + "'");
-      if (id < 0) throw InputError(file, line, "lane: a cone in a lane needs its id");
-      lanes[f[8] == "left" ? 0 : 1]->push_back(id);
+      if (!file_id) throw InputError(file, line, "lane: a cone in a lane needs its id");
+      if (id) lanes[f[8] == "left" ? 0 : 1]->push_back(*id);
       given.lanes = true;
     }
   }
   sink.finish();
-  // a lane cone dropped as a repeat of another is not in the layout
-  for (std::vector<int>* lane : lanes)
-    std::erase_if(*lane, [&track](int id) {
-      return std::none_of(track.cones.begin(), track.cones.end(),
-                          [id](const Cone& c) { return c.id == id; });
-    });
   given.start = start_line.has_value();
   finish(track, given);
   return track;
@@ -993,10 +1034,10 @@ void write_pacsim_yaml(const Track& track, const std::filesystem::path& file) {
   std::vector<const Cone*> left, right, others;
   for (int id : track.left_lane) left.push_back(&track.cone(id));
   for (int id : track.right_lane) right.push_back(&track.cone(id));
+  std::set<int> in_lanes(track.left_lane.begin(), track.left_lane.end());
+  in_lanes.insert(track.right_lane.begin(), track.right_lane.end());
   for (const Cone& c : track.cones)
-    if (std::find(track.left_lane.begin(), track.left_lane.end(), c.id) == track.left_lane.end() &&
-        std::find(track.right_lane.begin(), track.right_lane.end(), c.id) == track.right_lane.end())
-      others.push_back(&c);
+    if (in_lanes.count(c.id) == 0) others.push_back(&c);
   cone_list("left", left);
   cone_list("right", right);
 
@@ -1018,29 +1059,33 @@ void write_eufs_csv(const Track& track, const std::filesystem::path& file) {
       << format_number(track.start.yaw) << ",0.0,0.0,0.0,," << (track.closed ? "closed" : "open")
       << "\n";
 
-  // a row per cone: the lanes in driving order first, then the rest by id
-  const auto row = [&out](const Cone& c, const char* lane) {
+  // a row per cone with the id its file gave it: the lanes in driving order first, then the
+  // rest by id
+  const auto row = [&out, &track](const Cone& c, const char* lane) {
     const Eigen::Matrix2d cov = c.covariance.value_or(Eigen::Matrix2d::Zero());
     out << eufs_tag(c.cls) << "," << format_number(c.position.x()) << ","
         << format_number(c.position.y()) << ",0.0," << format_number(cov(0, 0)) << ","
-        << format_number(cov(1, 1)) << "," << format_number(cov(0, 1)) << "," << c.id << "," << lane
-        << "\n";
+        << format_number(cov(1, 1)) << "," << format_number(cov(0, 1)) << "," << track.file_id(c.id)
+        << "," << lane << "\n";
   };
+  std::unordered_map<int, size_t> index_of_id;
+  for (size_t i = 0; i < track.cones.size(); ++i) index_of_id.emplace(track.cones[i].id, i);
   std::vector<bool> written(track.cones.size(), false);
   const auto write_lane = [&](const std::vector<int>& lane, const char* name) {
     for (int id : lane)
-      for (size_t i = 0; i < track.cones.size(); ++i)
-        if (track.cones[i].id == id && !written[i]) {
-          row(track.cones[i], name);
-          written[i] = true;
-        }
+      if (const auto it = index_of_id.find(id); it != index_of_id.end() && !written[it->second]) {
+        row(track.cones[it->second], name);
+        written[it->second] = true;
+      }
   };
   write_lane(track.left_lane, "left");
   write_lane(track.right_lane, "right");
   std::vector<const Cone*> rest;
   for (size_t i = 0; i < track.cones.size(); ++i)
     if (!written[i]) rest.push_back(&track.cones[i]);
-  std::sort(rest.begin(), rest.end(), [](const Cone* a, const Cone* b) { return a->id < b->id; });
+  std::sort(rest.begin(), rest.end(), [&track](const Cone* a, const Cone* b) {
+    return track.file_id(a->id) < track.file_id(b->id);
+  });
   for (const Cone* c : rest) row(*c, "");
   write_text(out.str(), file);
 }

@@ -40,8 +40,9 @@ enum class TrackFormat { kFssimYaml, kPacsimYaml, kEufsCsv, kEpflCsv };
 /// Largest track file accepted, bytes (a real layout is a few tens of kilobytes).
 inline constexpr std::uintmax_t kMaxTrackFileBytes = 16u << 20;
 
-/// Most cones a layout may have (real ones have a few hundred; lane rebuilding is quadratic).
-inline constexpr std::size_t kMaxTrackCones = 10000;
+/// Most cones a layout may have: real ones have a few hundred, a whole venue's cone map a few
+/// thousand; every track operation costs O(n log n) in them (tests/bench/track_bench.cpp).
+inline constexpr std::size_t kMaxTrackCones = 100000;
 
 /// Reads a track file, telling the format from its extension and content. The result has
 /// unique cone ids, ordered lanes with blue on the left of the direction of travel (rebuilt

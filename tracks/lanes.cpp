@@ -5,8 +5,12 @@
 #include <cstdio>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <string>
+#include <unordered_set>
 #include <utility>
+
+#include "tracks/spatial_index.hpp"
 
 namespace conesim::tracks {
 
@@ -54,14 +58,25 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
+// a grid cell about as wide as the mean spacing of the points (their box shared out)
+double typical_cell_m(const std::vector<Vec2>& pts) {
+  if (pts.size() < 2) return 1.0;
+  Vec2 lo = pts.front(), hi = pts.front();
+  for (const Vec2& p : pts) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const double area = std::max((hi - lo).x(), 1.0) * std::max((hi - lo).y(), 1.0);
+  return std::max(0.5, std::sqrt(area / static_cast<double>(pts.size())));
+}
+
 // median distance from each point to its nearest neighbour
 double median_neighbour_distance(const std::vector<Vec2>& pts) {
   std::vector<double> nn;
+  const PointIndex index(pts, typical_cell_m(pts));
   for (size_t i = 0; i < pts.size(); ++i) {
-    double best = std::numeric_limits<double>::infinity();
-    for (size_t j = 0; j < pts.size(); ++j)
-      if (j != i) best = std::min(best, (pts[i] - pts[j]).norm());
-    if (std::isfinite(best)) nn.push_back(best);
+    const size_t j = index.nearest(pts[i], [i](size_t k) { return k != i; });
+    if (j != PointIndex::kNone) nn.push_back((pts[i] - pts[j]).norm());
   }
   return median(nn);
 }
@@ -83,24 +98,9 @@ size_t nearest_index(const std::vector<Vec2>& pts, const Vec2& p) {
   return best;
 }
 
-// nearest point to p on the polyline pts (closed: the last point joins the first)
-Vec2 nearest_on_polyline(const Vec2& p, const std::vector<Vec2>& pts, bool closed) {
-  if (pts.size() == 1) return pts.front();
-  Vec2 best = pts.front();
-  double best_d2 = std::numeric_limits<double>::infinity();
-  const size_t n = pts.size();
-  for (size_t i = 0; i < (closed ? n : n - 1); ++i) {
-    const Vec2 a = pts[i];
-    const Vec2 ab = pts[(i + 1) % n] - a;
-    const double len2 = ab.squaredNorm();
-    const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-    const Vec2 q = a + t * ab;
-    if ((p - q).squaredNorm() < best_d2) {
-      best_d2 = (p - q).squaredNorm();
-      best = q;
-    }
-  }
-  return best;
+// nearest point to p on the indexed polyline
+Vec2 nearest_on(const PolylineIndex& index, const Vec2& p) {
+  return index.nearest(p).point;
 }
 
 struct WalkLimits {
@@ -109,17 +109,17 @@ struct WalkLimits {
 };
 
 // greedily chains unused points from `from`, preferring short steps that keep the heading
-std::vector<size_t> walk(const std::vector<Vec2>& pts, std::vector<bool>& used, Vec2 from, Vec2 dir,
-                         const WalkLimits& limits) {
+std::vector<size_t> walk(const std::vector<Vec2>& pts, const PointIndex& index,
+                         std::vector<bool>& used, Vec2 from, Vec2 dir, const WalkLimits& limits) {
   std::vector<size_t> chain;
   const double min_cos = std::cos(limits.max_turn_rad);
   if (dir.norm() < 1e-12) return chain;
   dir.normalize();
   while (true) {
-    // score every reachable candidate ahead
+    // score every reachable candidate ahead (the index gives those within a step, in order)
     size_t best = kNone;
     double best_score = std::numeric_limits<double>::infinity();
-    for (size_t j = 0; j < pts.size(); ++j) {
+    for (size_t j : index.within(from, limits.max_step_m * (1.0 + 1e-9))) {
       if (used[j]) continue;
       const Vec2 v = pts[j] - from;
       const double d = v.norm();
@@ -166,35 +166,72 @@ bool closes(const std::vector<Vec2>& pts) {
 }
 
 // slots cones the walk stepped over between two chained neighbours when the detour is small;
-// a few passes (a slotted cone can make room for another), each linear in the lane length
-void insert_skipped(const std::vector<Vec2>& pts, std::vector<bool>& used,
+// a few passes (a slotted cone can make room for another). The chain is a linked list over
+// the points, and a cone is tried only against the segments starting near it (a detour under
+// kMaxInsertDetourM needs the segment's start within its length plus that of the cone), so a
+// pass costs what is near each skipped cone
+void insert_skipped(const std::vector<Vec2>& pts, const PointIndex& index, std::vector<bool>& used,
                     std::vector<size_t>& order) {
   for (int pass = 0; pass < kInsertPasses && order.size() >= 2; ++pass) {
     std::vector<Vec2> chain;
     for (size_t k : order) chain.push_back(pts[k]);
     const bool closed = closes(chain);
+
+    // the chain as links with a rank for its order (a slotted cone ranks between its
+    // neighbours), and the longest segment
+    std::vector<size_t> next(pts.size(), kNone);
+    std::vector<double> rank(pts.size(), 0.0);
+    double longest_m = 0.0;
+    for (size_t k = 0; k < order.size(); ++k) {
+      rank[order[k]] = static_cast<double>(k);
+      const bool has_next = k + 1 < order.size() || closed;
+      if (!has_next) continue;
+      next[order[k]] = order[(k + 1) % order.size()];
+      longest_m = std::max(longest_m, (pts[next[order[k]]] - pts[order[k]]).norm());
+    }
+    size_t last = order.back();
+    std::vector<bool> chained(pts.size(), false);
+    for (size_t k : order) chained[k] = true;
+
     bool inserted = false;
     for (size_t i = 0; i < pts.size(); ++i) {
       if (used[i]) continue;
-      // the segment whose detour through this cone is shortest
-      size_t best_k = kNone;
+      // the segment whose detour through this cone is shortest (ties: the earliest in order)
+      size_t best_a = kNone;
       double best_detour = kMaxInsertDetourM;
-      const size_t segments = closed ? order.size() : order.size() - 1;
-      for (size_t k = 0; k < segments; ++k) {
-        const Vec2& a = pts[order[k]];
-        const Vec2& b = pts[order[(k + 1) % order.size()]];
-        const double detour = (a - pts[i]).norm() + (pts[i] - b).norm() - (a - b).norm();
-        if (detour < best_detour) {
+      double best_rank = 0.0;
+      for (size_t a : index.within(pts[i], longest_m + kMaxInsertDetourM + 1e-6)) {
+        if (!chained[a] || next[a] == kNone) continue;
+        const size_t b = next[a];
+        const double detour =
+            (pts[a] - pts[i]).norm() + (pts[i] - pts[b]).norm() - (pts[a] - pts[b]).norm();
+        if (detour < best_detour ||
+            (detour == best_detour && best_a != kNone && rank[a] < best_rank)) {
           best_detour = detour;
-          best_k = k;
+          best_a = a;
+          best_rank = rank[a];
         }
       }
-      if (best_k == kNone) continue;
-      order.insert(order.begin() + static_cast<std::ptrdiff_t>(best_k + 1), i);
+      if (best_a == kNone) continue;
+      const size_t b = next[best_a];
+      // the closing segment (last to first) puts the cone at the end
+      const bool at_end = best_a == last;
+      rank[i] = at_end ? rank[best_a] + 1.0 : 0.5 * (rank[best_a] + rank[b]);
+      if (at_end) last = i;
+      longest_m = std::max({longest_m, (pts[i] - pts[best_a]).norm(), (pts[b] - pts[i]).norm()});
+      next[i] = b;
+      next[best_a] = i;
+      chained[i] = true;
       used[i] = true;
       inserted = true;
     }
     if (!inserted) break;
+
+    // back to an order: from the first cone along the links
+    std::vector<size_t> walked{order.front()};
+    for (size_t k = next[order.front()]; k != kNone && k != order.front(); k = next[k])
+      walked.push_back(k);
+    order = std::move(walked);
   }
 }
 
@@ -205,15 +242,17 @@ void extend_with_orange(const Track& track, std::vector<int>& lane,
   const std::vector<Vec2> pool = positions(track, pool_ids);
   const std::vector<Vec2> lane_pts = positions(track, lane);
   const WalkLimits limits{step_limit(lane_pts), kMaxExtendTurnRad};
+  const PointIndex index(pool, limits.max_step_m);
 
   // forward from the last cone
   const size_t n = lane_pts.size();
-  for (size_t k : walk(pool, pool_used, lane_pts[n - 1], lane_pts[n - 1] - lane_pts[n - 2], limits))
+  for (size_t k :
+       walk(pool, index, pool_used, lane_pts[n - 1], lane_pts[n - 1] - lane_pts[n - 2], limits))
     lane.push_back(pool_ids[k]);
 
   // backward from the first cone
   std::vector<int> before;
-  for (size_t k : walk(pool, pool_used, lane_pts[0], lane_pts[0] - lane_pts[1], limits))
+  for (size_t k : walk(pool, index, pool_used, lane_pts[0], lane_pts[0] - lane_pts[1], limits))
     before.push_back(pool_ids[k]);
   lane.insert(lane.begin(), before.rbegin(), before.rend());
 }
@@ -227,10 +266,11 @@ void extend_lanes_with_orange(const Track& track, std::vector<int>& left, std::v
   const std::vector<Vec2> left_pts = positions(track, left);
   const std::vector<Vec2> right_pts = positions(track, right);
   if (!left_pts.empty() && !right_pts.empty()) {
+    const PolylineIndex left_index(left_pts, false), right_index(right_pts, false);
     for (size_t k = 0; k < pool.size(); ++k) {
       const Vec2 p = track.cone(pool[k]).position;
-      const bool nearer_left = (nearest_on_polyline(p, left_pts, false) - p).norm() <=
-                               (nearest_on_polyline(p, right_pts, false) - p).norm();
+      const bool nearer_left =
+          (nearest_on(left_index, p) - p).norm() <= (nearest_on(right_index, p) - p).norm();
       (nearer_left ? right_used : left_used)[k] = true;
     }
   }
@@ -243,14 +283,6 @@ std::vector<int> ids_of(const Track& track, ConeClass cls) {
   for (const Cone& c : track.cones)
     if (c.cls == cls) ids.push_back(c.id);
   return ids;
-}
-
-// nearest cone of a class to p, if there is one
-std::optional<Vec2> nearest_of(const Track& track, ConeClass cls, const Vec2& p) {
-  std::optional<Vec2> best;
-  for (const Cone& c : track.cones)
-    if (c.cls == cls && (!best || (c.position - p).norm() < (*best - p).norm())) best = c.position;
-  return best;
 }
 
 // direction of travel of a lane at its cone nearest p (next minus previous cone)
@@ -283,8 +315,9 @@ std::vector<int> order_lane(const Track& track, const std::vector<int>& cone_ids
                             std::vector<int>* left_out) {
   // distinct ids and their positions
   std::vector<int> ids;
+  std::unordered_set<int> distinct;
   for (int id : cone_ids)
-    if (std::find(ids.begin(), ids.end(), id) == ids.end()) ids.push_back(id);
+    if (distinct.insert(id).second) ids.push_back(id);
   if (left_out) left_out->clear();
   if (ids.empty()) return {};
   const std::vector<Vec2> pts = positions(track, ids);
@@ -292,16 +325,19 @@ std::vector<int> order_lane(const Track& track, const std::vector<int>& cone_ids
   // walk forward from the cone nearest the start, then backward from it for cones behind
   std::vector<bool> used(pts.size(), false);
   const WalkLimits limits{step_limit(pts), kMaxTurnRad};
+  const PointIndex index(pts, limits.max_step_m);
   const size_t first = nearest_index(pts, track.start.position());
   used[first] = true;
-  const std::vector<size_t> ahead = walk(pts, used, pts[first], track.start.heading(), limits);
-  const std::vector<size_t> behind = walk(pts, used, pts[first], -track.start.heading(), limits);
+  const std::vector<size_t> ahead =
+      walk(pts, index, used, pts[first], track.start.heading(), limits);
+  const std::vector<size_t> behind =
+      walk(pts, index, used, pts[first], -track.start.heading(), limits);
   std::vector<size_t> order(behind.rbegin(), behind.rend());
   order.push_back(first);
   order.insert(order.end(), ahead.begin(), ahead.end());
 
   // slot in cones the greedy walk stepped over
-  insert_skipped(pts, used, order);
+  insert_skipped(pts, index, used, order);
 
   // map back to ids; what is still unused could not be chained
   std::vector<int> lane;
@@ -354,14 +390,14 @@ void orient_lanes(Track& track) {
   const std::vector<Vec2> left = track.lane_points(track.left_lane);
   const std::vector<Vec2> right = track.lane_points(track.right_lane);
   if (left.size() >= 2 && !right.empty()) {
+    const PolylineIndex right_index(right, track.closed);
     int votes = 0;
     const size_t n = left.size();
     for (size_t i = 0; i < n; ++i) {
       const size_t prev = track.closed ? (i + n - 1) % n : (i == 0 ? 0 : i - 1);
       const size_t next = track.closed ? (i + 1) % n : std::min(i + 1, n - 1);
       const Vec2 dir = left[next] - left[prev];
-      const double side =
-          core::cross(dir, left[i] - nearest_on_polyline(left[i], right, track.closed));
+      const double side = core::cross(dir, left[i] - nearest_on(right_index, left[i]));
       votes += side > 0.0 ? 1 : (side < 0.0 ? -1 : 0);
     }
     if (votes < 0) {
@@ -379,38 +415,77 @@ void orient_lanes(Track& track) {
   }
 }
 
-Vec2 left_direction_at(const Track& track, const Vec2& p) {
-  // from the nearest point of the right lane to the nearest point of the left lane (points
-  // of the polylines, not cones: across a gap such as the start/finish gate the nearest cones
-  // may stand round the corner on either side)
-  const std::vector<Vec2> left = track.lane_points(track.left_lane);
-  const std::vector<Vec2> right = track.lane_points(track.right_lane);
-  if (!left.empty() && !right.empty()) {
-    const Vec2 d =
-        nearest_on_polyline(p, left, track.closed) - nearest_on_polyline(p, right, track.closed);
-    if (d.norm() > 1e-9) return d.normalized();
+namespace {
+
+// what left_direction_at looks at, indexed once for many places
+class AcrossTrack {
+ public:
+  explicit AcrossTrack(const Track& track)
+      : track_(track),
+        left_(track.lane_points(track.left_lane)),
+        right_(track.lane_points(track.right_lane)),
+        left_index_(left_, track.closed),
+        right_index_(right_, track.closed) {
+    for (const Cone& c : track.cones) {
+      if (c.cls == ConeClass::kBlue) blue_.push_back(c.position);
+      if (c.cls == ConeClass::kYellow) yellow_.push_back(c.position);
+    }
   }
 
-  // else from the nearest yellow cone to the nearest blue one
-  const std::optional<Vec2> blue = nearest_of(track, ConeClass::kBlue, p);
-  const std::optional<Vec2> yellow = nearest_of(track, ConeClass::kYellow, p);
-  if (blue && yellow && (*blue - *yellow).norm() > 1e-9) return (*blue - *yellow).normalized();
+  Vec2 left_direction_at(const Vec2& p) const {
+    // from the nearest point of the right lane to the nearest point of the left lane (points
+    // of the polylines, not cones: across a gap such as the start/finish gate the nearest
+    // cones may stand round the corner on either side)
+    if (!left_.empty() && !right_.empty()) {
+      const Vec2 d = nearest_on(left_index_, p) - nearest_on(right_index_, p);
+      if (d.norm() > 1e-9) return d.normalized();
+    }
 
-  // else the start pose's left
-  return {-std::sin(track.start.yaw), std::cos(track.start.yaw)};
+    // else from the nearest yellow cone to the nearest blue one
+    const std::optional<Vec2> blue = nearest(blue_, blue_index_, p);
+    const std::optional<Vec2> yellow = nearest(yellow_, yellow_index_, p);
+    if (blue && yellow && (*blue - *yellow).norm() > 1e-9) return (*blue - *yellow).normalized();
+
+    // else the start pose's left
+    return {-std::sin(track_.start.yaw), std::cos(track_.start.yaw)};
+  }
+
+ private:
+  static std::optional<Vec2> nearest(const std::vector<Vec2>& pts, std::optional<PointIndex>& index,
+                                     const Vec2& p) {
+    if (pts.empty()) return std::nullopt;
+    if (!index) index.emplace(pts, typical_cell_m(pts));
+    return pts[index->nearest(p, [](size_t) { return true; })];
+  }
+
+  const Track& track_;
+  std::vector<Vec2> left_, right_, blue_, yellow_;
+  PolylineIndex left_index_, right_index_;
+  mutable std::optional<PointIndex> blue_index_, yellow_index_;
+};
+
+}  // namespace
+
+Vec2 left_direction_at(const Track& track, const Vec2& p) {
+  return AcrossTrack(track).left_direction_at(p);
+}
+
+std::vector<Vec2> left_directions_at(const Track& track, const std::vector<Vec2>& places) {
+  const AcrossTrack across(track);
+  std::vector<Vec2> out;
+  out.reserve(places.size());
+  for (const Vec2& p : places) out.push_back(across.left_direction_at(p));
+  return out;
 }
 
 void extend_open_lanes_with_orange(Track& track) {
   if (track.closed) return;
   // the pool: orange cones that neither lane holds yet
   std::vector<int> pool;
-  for (const Cone& c : track.cones) {
-    if (c.cls != ConeClass::kOrangeSmall) continue;
-    const auto in = [&c](const std::vector<int>& lane) {
-      return std::find(lane.begin(), lane.end(), c.id) != lane.end();
-    };
-    if (!in(track.left_lane) && !in(track.right_lane)) pool.push_back(c.id);
-  }
+  std::unordered_set<int> in_lanes(track.left_lane.begin(), track.left_lane.end());
+  in_lanes.insert(track.right_lane.begin(), track.right_lane.end());
+  for (const Cone& c : track.cones)
+    if (c.cls == ConeClass::kOrangeSmall && in_lanes.count(c.id) == 0) pool.push_back(c.id);
   extend_lanes_with_orange(track, track.left_lane, track.right_lane, pool);
 }
 
@@ -420,6 +495,7 @@ std::vector<Gate> gates_from_big_orange(const Track& track) {
   const std::vector<Vec2> pts = positions(track, ids);
   std::vector<int> group(pts.size(), -1);
   int groups = 0;
+  const PointIndex index(pts, kGateGroupRadiusM);
   for (size_t seed = 0; seed < pts.size(); ++seed) {
     if (group[seed] >= 0) continue;
     std::vector<size_t> stack{seed};
@@ -427,7 +503,7 @@ std::vector<Gate> gates_from_big_orange(const Track& track) {
     while (!stack.empty()) {
       const size_t i = stack.back();
       stack.pop_back();
-      for (size_t j = 0; j < pts.size(); ++j)
+      for (size_t j : index.within(pts[i], kGateGroupRadiusM))
         if (group[j] < 0 && (pts[i] - pts[j]).norm() < kGateGroupRadiusM) {
           group[j] = groups;
           stack.push_back(j);
@@ -438,20 +514,21 @@ std::vector<Gate> gates_from_big_orange(const Track& track) {
 
   // split each group into its left and right side and join their middles
   std::vector<Gate> gates;
+  std::vector<std::vector<size_t>> members(static_cast<size_t>(groups));
+  for (size_t i = 0; i < pts.size(); ++i) members[static_cast<size_t>(group[i])].push_back(i);
+  const AcrossTrack across_track(track);
   for (int g = 0; g < groups; ++g) {
     Vec2 centre = Vec2::Zero();
     int n = 0;
-    for (size_t i = 0; i < pts.size(); ++i) {
-      if (group[i] != g) continue;
+    for (size_t i : members[static_cast<size_t>(g)]) {
       centre += pts[i];
       ++n;
     }
     centre /= n;
-    const Vec2 across = left_direction_at(track, centre);
+    const Vec2 across = across_track.left_direction_at(centre);
     Vec2 left_sum = Vec2::Zero(), right_sum = Vec2::Zero();
     int n_left = 0, n_right = 0;
-    for (size_t i = 0; i < pts.size(); ++i) {
-      if (group[i] != g) continue;
+    for (size_t i : members[static_cast<size_t>(g)]) {
       if ((pts[i] - centre).dot(across) > 0.0) {
         left_sum += pts[i];
         ++n_left;

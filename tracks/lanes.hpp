@@ -45,6 +45,9 @@ void orient_lanes(Track& track);
 /// start pose's left.
 Vec2 left_direction_at(const Track& track, const Vec2& p);
 
+/// left_direction_at for many places at once (the lanes indexed once).
+std::vector<Vec2> left_directions_at(const Track& track, const std::vector<Vec2>& places);
+
 /// Time-keeping gates made of the big orange cones: cones closer than 6 m to each other form a
 /// group, the group is split into its left and right side (left_direction_at), and the gate
 /// joins the middles of the two sides. Groups with cones on one side only give no gate.

@@ -5,12 +5,14 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <optional>
 #include <tuple>
 #include <utility>
 
 #include "tracks/fsg_layouts.hpp"
+#include "tracks/spatial_index.hpp"
 
 namespace conesim::tracks {
 
@@ -45,6 +47,11 @@ std::string format(const char* pattern, Args... args) {
   return buffer;
 }
 
+// a cone's id as its file gave it, for messages
+unsigned long long shown_id(const Track& track, int id) {
+  return track.file_id(id);
+}
+
 Violation make_violation(std::string rule, std::string message, const Vec2& where,
                          bool warning = false) {
   return {std::move(rule), std::move(message), where, warning};
@@ -74,20 +81,10 @@ struct Nearest {
   double t = 0.0;  // position within the segment, 0..1
 };
 
-Nearest nearest_on_polyline(const Vec2& p, const std::vector<Vec2>& pts, bool closed) {
-  Nearest best;
-  if (pts.empty()) return best;
-  if (pts.size() == 1) return {pts.front(), (p - pts.front()).norm(), 0, 0.0};
-  for (size_t i = 0; i < segment_count(pts, closed); ++i) {
-    const Vec2& a = pts[i];
-    const Vec2 ab = pts[(i + 1) % pts.size()] - a;
-    const double len2 = ab.squaredNorm();
-    const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-    const Vec2 q = a + t * ab;
-    const double d = (p - q).norm();
-    if (d < best.distance) best = {q, d, i, t};
-  }
-  return best;
+Nearest nearest_on(const PolylineIndex& index, const Vec2& p) {
+  const PolylineIndex::Nearest n = index.nearest(p);
+  if (!std::isfinite(n.distance2)) return {};
+  return {n.point, std::sqrt(n.distance2), n.segment, n.t};
 }
 
 // even-odd test: is p inside the polygon pts
@@ -143,6 +140,8 @@ struct Line {
   std::vector<Vec2> pts;
   std::vector<double> s;
   bool closed = false;
+  // the points' segments indexed for nearest-point queries (made by make_line)
+  std::shared_ptr<const PolylineIndex> index;
   double length() const { return s.empty() ? 0.0 : s.back(); }
 };
 
@@ -151,6 +150,7 @@ Line make_line(std::vector<Vec2> pts, bool closed) {
   line.closed = closed && pts.size() > 2;
   if (line.closed) pts.push_back(pts.front());
   line.s = arc_lengths(pts);
+  line.index = std::make_shared<const PolylineIndex>(pts, false);
   line.pts = std::move(pts);
   return line;
 }
@@ -171,7 +171,7 @@ Vec2 point_at(const Line& line, double s) {
 
 // arc length of the point of the line nearest to p
 double project_on_line(const Line& line, const Vec2& p) {
-  const Nearest n = nearest_on_polyline(p, line.pts, false);
+  const Nearest n = nearest_on(*line.index, p);
   if (line.pts.size() < 2) return 0.0;
   return line.s[n.segment] + n.t * (line.s[n.segment + 1] - line.s[n.segment]);
 }
@@ -347,8 +347,9 @@ std::vector<WidthSample> width_samples(const Lanes& lanes) {
   std::vector<WidthSample> samples;
   if (lanes.left.empty() || lanes.right.empty()) return samples;
   auto sample_lane = [&](const std::vector<Vec2>& lane, const std::vector<Vec2>& other) {
+    const PolylineIndex index(other, lanes.closed);
     for (const Vec2& p : lane) {
-      const Nearest n = nearest_on_polyline(p, other, lanes.closed);
+      const Nearest n = nearest_on(index, p);
       samples.push_back({n.distance, p, n.point});
     }
   };
@@ -413,8 +414,9 @@ void check_spacing(const Track& track, const RuleLimits& limits, std::vector<Vio
       if (gap <= limits.max_cone_spacing_m + limits.survey_tolerance_m) continue;
       out.push_back(
           make_violation("max_cone_spacing",
-                         format("%s cones %d and %d are %.2f m apart, at most %.2f m allowed", side,
-                                (*lane)[i], (*lane)[j], gap, limits.max_cone_spacing_m),
+                         format("%s cones %llu and %llu are %.2f m apart, at most %.2f m allowed",
+                                side, shown_id(track, (*lane)[i]), shown_id(track, (*lane)[j]), gap,
+                                limits.max_cone_spacing_m),
                          0.5 * (pts[i] + pts[j])));
     }
   }
@@ -459,14 +461,19 @@ void check_crossings(const Track& track, const Lanes& lanes, std::vector<Violati
   const size_t nl = segment_count(lanes.left, lanes.closed);
   const size_t nr = segment_count(lanes.right, lanes.closed);
   auto ids = [&](const std::vector<int>& lane, size_t i) {
-    return std::pair{lane[i], lane[(i + 1) % lane.size()]};
+    return std::pair{shown_id(track, lane[i]), shown_id(track, lane[(i + 1) % lane.size()])};
   };
 
-  // left against right
+  // left against right: each segment against those of the other lane near it (a grid of the
+  // segments: linear in the cones rather than quadratic)
+  const PolylineIndex left_index(lanes.left, lanes.closed), right_index(lanes.right, lanes.closed);
+  const auto box_lo = [](const Vec2& a, const Vec2& b) { return Vec2(a.cwiseMin(b)); };
+  const auto box_hi = [](const Vec2& a, const Vec2& b) { return Vec2(a.cwiseMax(b)); };
   for (size_t i = 0; i < nl; ++i) {
     const Vec2& a1 = lanes.left[i];
     const Vec2& a2 = lanes.left[(i + 1) % lanes.left.size()];
-    for (size_t j = 0; j < nr; ++j) {
+    for (size_t j : right_index.segments_near(box_lo(a1, a2), box_hi(a1, a2))) {
+      if (j >= nr) continue;
       const Vec2& b1 = lanes.right[j];
       const Vec2& b2 = lanes.right[(j + 1) % lanes.right.size()];
       const std::optional<Vec2> at = segments_meet(a1, a2, b1, b2);
@@ -475,7 +482,7 @@ void check_crossings(const Track& track, const Lanes& lanes, std::vector<Violati
       const auto [r1, r2] = ids(track.right_lane, j);
       out.push_back(make_violation(
           "boundary_crossing",
-          format("left segment %d-%d crosses right segment %d-%d", l1, l2, r1, r2), *at));
+          format("left segment %llu-%llu crosses right segment %llu-%llu", l1, l2, r1, r2), *at));
     }
   }
 
@@ -483,11 +490,13 @@ void check_crossings(const Track& track, const Lanes& lanes, std::vector<Violati
   for (const auto& [lane, pts, side] : {std::tuple{&track.left_lane, &lanes.left, "left"},
                                         std::tuple{&track.right_lane, &lanes.right, "right"}}) {
     const size_t n = segment_count(*pts, lanes.closed);
+    const PolylineIndex& index = pts == &lanes.left ? left_index : right_index;
     for (size_t i = 0; i < n; ++i) {
-      for (size_t j = i + 2; j < n; ++j) {
+      const Vec2& a1 = (*pts)[i];
+      const Vec2& a2 = (*pts)[(i + 1) % pts->size()];
+      for (size_t j : index.segments_near(box_lo(a1, a2), box_hi(a1, a2))) {
+        if (j < i + 2 || j >= n) continue;
         if (lanes.closed && i == 0 && j == n - 1) continue;
-        const Vec2& a1 = (*pts)[i];
-        const Vec2& a2 = (*pts)[(i + 1) % pts->size()];
         const Vec2& b1 = (*pts)[j];
         const Vec2& b2 = (*pts)[(j + 1) % pts->size()];
         const std::optional<Vec2> at = segments_meet(a1, a2, b1, b2);
@@ -495,8 +504,8 @@ void check_crossings(const Track& track, const Lanes& lanes, std::vector<Violati
         const auto [a_from, a_to] = ids(*lane, i);
         const auto [b_from, b_to] = ids(*lane, j);
         out.push_back(make_violation("boundary_self_crossing",
-                                     format("%s segment %d-%d crosses %s segment %d-%d", side,
-                                            a_from, a_to, side, b_from, b_to),
+                                     format("%s segment %llu-%llu crosses %s segment %llu-%llu",
+                                            side, a_from, a_to, side, b_from, b_to),
                                      *at));
       }
     }
@@ -614,7 +623,7 @@ void check_hairpins(const Line& line, const std::vector<double>& kappa_centre, c
       if (radius >= min_outer_r - 0.5 * limits.survey_tolerance_m) continue;
 
       // and the centre line turns the same way, tightly, next to it
-      const Nearest n = nearest_on_polyline((*lane)[i], line.pts, false);
+      const Nearest n = nearest_on(*line.index, (*lane)[i]);
       const size_t k = (n.t < 0.5 ? n.segment : n.segment + 1) % kappa_centre.size();
       if (kappa_centre[k] * outside_sign * min_outer_r <= 1.0) continue;
       offenders.push_back({project_on_line(line, (*lane)[i]), radius, (*lane)[i]});
@@ -658,11 +667,13 @@ struct Ring {
 };
 
 // indices of the points within kRingBandM of a circle
-std::vector<size_t> ring_members(const std::vector<Vec2>& pts, const std::vector<bool>& used,
-                                 const Vec2& centre, double radius) {
+std::vector<size_t> ring_members(const std::vector<Vec2>& pts, const PointIndex& index,
+                                 const std::vector<bool>& used, const Vec2& centre, double radius) {
   std::vector<size_t> members;
-  for (size_t i = 0; i < pts.size(); ++i)
+  index.for_each_within(centre, radius + kRingBandM + 1e-9, [&](size_t i) {
     if (!used[i] && std::abs((pts[i] - centre).norm() - radius) <= kRingBandM) members.push_back(i);
+  });
+  std::sort(members.begin(), members.end());
   return members;
 }
 
@@ -671,19 +682,27 @@ std::vector<size_t> ring_members(const std::vector<Vec2>& pts, const std::vector
 std::vector<Ring> find_rings(const std::vector<Vec2>& pts, size_t max_rings) {
   std::vector<Ring> rings;
   std::vector<bool> used(pts.size(), false);
+  // the seeds' neighbours and the members from a grid (the points within a span of a seed)
+  const PointIndex index(pts, kRingSeedSpanM);
+  std::vector<std::vector<size_t>> near_of(pts.size());
+  for (size_t a = 0; a < pts.size(); ++a)
+    near_of[a] = index.within(pts[a], kRingSeedSpanM * (1.0 + 1e-9));
   while (rings.size() < max_rings) {
     Ring best;
     for (size_t a = 0; a < pts.size(); ++a) {
       if (used[a]) continue;
-      for (size_t b = a + 1; b < pts.size(); ++b) {
-        if (used[b] || (pts[b] - pts[a]).norm() > kRingSeedSpanM) continue;
-        for (size_t c = b + 1; c < pts.size(); ++c) {
+      const std::vector<size_t>& near = near_of[a];
+      for (size_t b : near) {
+        if (b <= a || used[b] || (pts[b] - pts[a]).norm() > kRingSeedSpanM) continue;
+        for (size_t c : near) {
+          if (c <= b) continue;
           if (used[c] || (pts[c] - pts[a]).norm() > kRingSeedSpanM ||
               (pts[c] - pts[b]).norm() > kRingSeedSpanM)
             continue;
           const auto circle = fit_circle({pts[a], pts[b], pts[c]});
           if (!circle || circle->second > 50.0) continue;
-          std::vector<size_t> members = ring_members(pts, used, circle->first, circle->second);
+          std::vector<size_t> members =
+              ring_members(pts, index, used, circle->first, circle->second);
           if (members.size() > best.members.size())
             best = {circle->first, circle->second, std::move(members)};
         }
@@ -695,7 +714,7 @@ std::vector<Ring> find_rings(const std::vector<Vec2>& pts, size_t max_rings) {
     std::vector<Vec2> member_pts;
     for (size_t i : best.members) member_pts.push_back(pts[i]);
     if (const auto refined = fit_circle(member_pts)) {
-      std::vector<size_t> members = ring_members(pts, used, refined->first, refined->second);
+      std::vector<size_t> members = ring_members(pts, index, used, refined->first, refined->second);
       if (members.size() >= best.members.size()) {
         member_pts.clear();
         for (size_t i : members) member_pts.push_back(pts[i]);

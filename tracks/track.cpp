@@ -6,32 +6,11 @@
 #include <stdexcept>
 #include <utility>
 
+#include "tracks/spatial_index.hpp"
+
 namespace conesim::tracks {
 
 namespace {
-
-// nearest point to p on the polyline pts (closed: the last point joins the first)
-Vec2 nearest_on_polyline(const Vec2& p, const std::vector<Vec2>& pts, bool closed) {
-  Vec2 best = pts.front();
-  double best_d2 = std::numeric_limits<double>::infinity();
-  const size_t n = pts.size();
-  const size_t segments = closed ? n : n - 1;
-  for (size_t i = 0; i < segments; ++i) {
-    const Vec2& a = pts[i];
-    const Vec2& b = pts[(i + 1) % n];
-    const Vec2 ab = b - a;
-    const double len2 = ab.squaredNorm();
-    const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-    const Vec2 q = a + t * ab;
-    const double d2 = (p - q).squaredNorm();
-    if (d2 < best_d2) {
-      best_d2 = d2;
-      best = q;
-    }
-  }
-  if (n == 1) best = pts.front();
-  return best;
-}
 
 // points every spacing_m along the polyline (closed: around the loop, without repeating start)
 std::vector<Vec2> resample(const std::vector<Vec2>& pts, bool closed, double spacing_m) {
@@ -65,9 +44,17 @@ std::vector<Vec2> resample(const std::vector<Vec2>& pts, bool closed, double spa
 }  // namespace
 
 const Cone& Track::cone(int id) const {
+  // the ids are the places in `cones` (the readers' and the generator's tracks)
+  if (id >= 0 && static_cast<size_t>(id) < cones.size() && cones[static_cast<size_t>(id)].id == id)
+    return cones[static_cast<size_t>(id)];
   for (const Cone& c : cones)
     if (c.id == id) return c;
   throw std::out_of_range("track " + name + " has no cone with id " + std::to_string(id));
+}
+
+uint64_t Track::file_id(int id) const {
+  const auto it = file_ids.find(id);
+  return it != file_ids.end() ? it->second : static_cast<uint64_t>(id);
 }
 
 std::vector<Vec2> Track::lane_points(const std::vector<int>& lane) const {
@@ -95,14 +82,16 @@ std::vector<Vec2> derive_centre_line(const Track& track, double spacing_m) {
 
   // sample the left boundary densely and pair each sample with the nearest right-boundary point
   const std::vector<Vec2> left_dense = resample(left, track.closed, 0.5);
+  const PolylineIndex right_index(right, track.closed);
   std::vector<Vec2> mid;
   mid.reserve(left_dense.size());
-  for (const Vec2& p : left_dense) mid.push_back(0.5 * (p + nearest_on_polyline(p, right, track.closed)));
+  for (const Vec2& p : left_dense) mid.push_back(0.5 * (p + right_index.nearest(p).point));
 
   // open layouts: extend to the ends of the right lane too, so the line spans both lanes
   if (!track.closed) {
-    const Vec2 first = 0.5 * (right.front() + nearest_on_polyline(right.front(), left, false));
-    const Vec2 last = 0.5 * (right.back() + nearest_on_polyline(right.back(), left, false));
+    const PolylineIndex left_index(left, false);
+    const Vec2 first = 0.5 * (right.front() + left_index.nearest(right.front()).point);
+    const Vec2 last = 0.5 * (right.back() + left_index.nearest(right.back()).point);
     const Vec2 dir = mid.size() > 1 ? Vec2(mid.back() - mid.front()) : Vec2(1.0, 0.0);
     if ((first - mid.front()).dot(dir) < 0.0) mid.insert(mid.begin(), first);
     if ((last - mid.back()).dot(dir) > 0.0) mid.push_back(last);

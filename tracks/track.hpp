@@ -3,6 +3,8 @@
 // ordered boundary lanes from which the centre line is derived.
 
 #include <Eigen/Core>
+#include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -18,13 +20,15 @@ using core::ConeClass;
 using core::Pose2;
 using core::Vec2;
 
-using core::EventType;
 using core::event_from_string;
+using core::EventType;
 using core::to_string;
 
 /// One cone of the layout.
 struct Cone {
-  /// Stable id: unique within the track, kept through export and import (EUFS CSV).
+  /// Stable id, unique within the track: the readers number the cones 0, 1, 2 ... in file
+  /// order, so that whatever is kept per cone costs memory by the number of cones, never by
+  /// the size of an id. The id a file gives is kept beside it (Track::file_id).
   int id = 0;
   ConeClass cls = ConeClass::kUnknown;
   /// Position of the cone's base centre in the track frame, metres.
@@ -63,9 +67,15 @@ struct Track {
   std::vector<Vec2> centre_line;
   /// Non-fatal oddities met while reading (a duplicate cone dropped, a guessed start pose).
   std::vector<std::string> warnings;
+  /// The ids the file gave its cones (EUFS CSV's id column, anywhere in 0 .. 2^64 - 1), by cone
+  /// id; empty when the file gave none. Every output a user reads shows these (file_id()).
+  std::map<int, uint64_t> file_ids;
 
-  /// The cone with this id; throws std::out_of_range when there is none.
+  /// The cone with this id; throws std::out_of_range when there is none. Constant time when
+  /// the ids are the cones' places in `cones` (as the readers and the generator make them).
   const Cone& cone(int id) const;
+  /// The id a user knows the cone by: the one its file gave, else its id.
+  uint64_t file_id(int id) const;
   /// Positions of the cones of a lane, in order.
   std::vector<Vec2> lane_points(const std::vector<int>& lane) const;
   /// Number of cones of a class.

@@ -11,6 +11,7 @@
 #include "core/error.hpp"
 #include "sim/bench.hpp"
 #include "sim/compare.hpp"
+#include "sim/interrupt.hpp"
 #include "sim/regress.hpp"
 #include "sim/run.hpp"
 #include "sim/scenario.hpp"
@@ -280,6 +281,7 @@ void add_run_command(CLI::App& app, int& status) {
       ->check(CLI::Range(1, 1000000));
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;
+    sim::install_interrupt_handlers();
     // every input is checked before the run folder is touched
     const fs::path file = sim::find_scenario(*scenario);
     sim::Scenario s = sim::load_scenario(
@@ -291,6 +293,8 @@ void add_run_command(CLI::App& app, int& status) {
     }
     const conesim::tracks::Track t = sim::scenario_track(s);
     for (const std::string& w : t.warnings) std::cerr << "warning: " << w << "\n";
+    if (const std::string why = sim::run_bounds_problem(t); !why.empty())
+      throw conesim::core::InputError(s.track.file ? s.track.file->string() : t.name, 0, why);
     // a circuit this car cannot drive is refused before any run folder is made
     if (s.driver.check_drivable) {
       if (const std::string why = sim::drivability_problem(s, t); !why.empty())
@@ -308,12 +312,22 @@ void add_run_command(CLI::App& app, int& status) {
     options.plot = !*no_plot;
     options.dump.sensors = {dump->begin(), dump->end()};
     options.dump.every = *dump_every;
+    std::error_code ec;
+    const bool existed = !out->empty() && fs::exists(*out, ec);
     try {
       options.out_dir = out->empty() ? sim::make_run_dir("runs", s.name) : *out;
       fs::create_directories(options.out_dir);
     } catch (const fs::filesystem_error& e) {
       throw conesim::core::InputError(out->empty() ? "runs" : "--out " + out->string(), 0,
                                       "cannot create the run folder: " + e.code().message());
+    }
+    // a folder the results cannot be written to (read-only, full) is refused now; one made
+    // for this run is removed again
+    try {
+      sim::check_output_writable(options.out_dir);
+    } catch (const conesim::core::InputError&) {
+      if (!existed) fs::remove(options.out_dir, ec);
+      throw;
     }
     // the live progress line only on a terminal
     const bool tty = isatty(STDERR_FILENO);
@@ -326,6 +340,14 @@ void add_run_command(CLI::App& app, int& status) {
     }
     const sim::RunResult r = sim::run_scenario(s, t, options);
     if (tty) std::fprintf(stderr, "\r\033[K");
+    if (r.interrupted_by != 0) {
+      std::fprintf(stderr,
+                   "interrupted by %s at sim time %.1f s: %s has no metrics.json (see %s)\n",
+                   sim::signal_name(r.interrupted_by), r.sim_time_s,
+                   options.out_dir.string().c_str(), sim::kIncompleteFile);
+      status = sim::interrupted_exit_status(r.interrupted_by);
+      return;
+    }
 
     // one summary on stdout
     const auto& ref = r.referee;
@@ -375,8 +397,15 @@ void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
   cmd->add_flag("--no-plot", *no_plot, "Runs draw no pictures (faster; report.html has none)");
   auto list = std::make_shared<bool>(false);
   cmd->add_flag("--list", *list, "Print the runs (id and folder) and stop: nothing runs");
+  cmd->add_flag("--resume", o->resume,
+                "With --out of an earlier, interrupted call with the same runs: the runs that "
+                "wrote their metrics.json are read, the others run");
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;
+    sim::install_interrupt_handlers();
+    if (o->resume && o->out_dir.empty())
+      throw conesim::core::InputError("--resume", 0,
+                                      "needs --out: the folder of the interrupted regress");
     // the options, checked before any run starts
     if (!seeds->empty()) o->seeds = sim::parse_seeds(*seeds);
     if (!generated->empty()) {
@@ -451,6 +480,7 @@ void add_compare_command(CLI::App& app, int& status, int argc, char** argv) {
       std::cout << plan.runs.size() << " runs\n";
       return;
     }
+    sim::install_interrupt_handlers();
     // bad input stops before a folder is made
     sim::plan_study(*o);
     if (o->out_dir.empty()) o->out_dir = sim::make_run_dir("runs", "compare-" + o->study);
@@ -504,6 +534,23 @@ void add_bench_commands(CLI::App& app) {
   cmd->add_flag("--no-closed-loop", *no_loop, "Skip the closed-loop runs");
   cmd->callback(
       [=] { std::cout << conesim::sim::bench_sensors(*repeats, !*no_loop).dump(2) << "\n"; });
+
+  auto* tracks_cmd = bench->add_subcommand(
+      "tracks",
+      "Seconds of track validate, info and convert on large layouts (a circuit among "
+      "scattered cones, a long circuit, random cones)");
+  auto counts = std::make_shared<std::vector<int>>(std::vector<int>{1000, 4000, 10000, 20000});
+  auto track_repeats = std::make_shared<int>(3);
+  auto keep = std::make_shared<fs::path>();
+  tracks_cmd->add_option("--cones", *counts, "Cone counts (comma-separated)")
+      ->delimiter(',')
+      ->check(CLI::Range(10, 100000));
+  tracks_cmd->add_option("--repeats", *track_repeats, "Repetitions (the median is given)")
+      ->check(CLI::Range(1, 100));
+  tracks_cmd->add_option("--keep", *keep, "Write the layouts into this folder and keep them");
+  tracks_cmd->callback([=] {
+    std::cout << conesim::sim::bench_tracks(*counts, *track_repeats, *keep).dump(2) << "\n";
+  });
 }
 
 }  // namespace

@@ -26,6 +26,14 @@ expect_text() {  # expect_text NAME FILE REGEX
     passed=$((passed + 1))
   fi
 }
+expect_missing() {  # expect_missing NAME PATH
+  if [ -e "$2" ]; then
+    echo "FAIL $1: $2 exists"
+    failures=$((failures + 1))
+  else
+    passed=$((passed + 1))
+  fi
+}
 report() {  # the totals; fails when a check failed
   echo "$passed passed, $failures failed"
   [ "$failures" -eq 0 ]

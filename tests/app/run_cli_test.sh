@@ -13,14 +13,6 @@ mkdir "$work"
 trap 'rm -rf "$top"' EXIT
 . "$(dirname "$0")/check_lib.sh"
 cd "$work" || exit 1
-expect_missing() {  # expect_missing NAME PATH
-  if [ -e "$2" ]; then
-    echo "FAIL $1: $2 exists"
-    failures=$((failures + 1))
-  else
-    passed=$((passed + 1))
-  fi
-}
 bad() {  # bad NAME REGEX ARGS... : exit 2, the message matches, no runs/ folder made
   local name="$1" regex="$2"
   shift 2
@@ -159,5 +151,17 @@ expect_text short_zone_slower "$work/slow/metrics.json" '"passed": true'
 } >"$work/under.csv"
 bad cone_under_car 'under\.csv: not drivable by this car: the yellow cone at \(-1\.0, 0\.3\) stands under the car where it starts' \
   trackdrive --track "$work/under.csv" --no-plot
+
+# a layout in surveyed (UTM) coordinates: refused before the run, naming a cone and the bound
+{
+  echo 'tag,x,y,direction,x_variance,y_variance,xy_covariance,id'
+  echo 'car_start,500000.0,5500000.0,0.0,0.0,0.0,0.0,'
+  for x in $(seq 0 5 70); do
+    echo "blue,$((500000 + x)),5500001.5,0.0,0.0,0.0,0.0,$((1000 + x))"
+    echo "yellow,$((500000 + x)),5499998.5,0.0,0.0,0.0,0.0,$((2000 + x))"
+  done
+} >"$work/utm.csv"
+bad far_layout 'utm\.csv: cone 1000 stands at \(500000\.0, 5500001\.5\): a run needs every cone within 2000 m of the origin' \
+  autocross --track "$work/utm.csv" --no-plot
 
 report

@@ -28,6 +28,14 @@ std::string data(const std::string& path) {
   return std::string(CONESIM_TEST_DATA) + "/tracks/" + path;
 }
 
+// the cone whose file gave it this id (the test fails when there is none)
+const Cone& cone_with_file_id(const Track& track, uint64_t file_id) {
+  for (const Cone& c : track.cones)
+    if (track.file_id(c.id) == file_id) return c;
+  ADD_FAILURE() << "no cone with file id " << file_id;
+  return track.cones.front();
+}
+
 // a fresh directory under the system temp dir, removed at the end of the test
 class TempDir {
  public:
@@ -402,10 +410,10 @@ TEST_P(RoundTripTest, SameConesStartLanesAndClosedFlag) {
     EXPECT_TRUE(found) << "cone " << c.id;
   }
 
-  // csv keeps the ids, classes and covariances
+  // csv keeps the ids (as the file's ids of the cones), classes and covariances
   if (p.ext == ".csv") {
     for (const Cone& c : original.cones) {
-      const Cone& k = copy.cone(c.id);
+      const Cone& k = cone_with_file_id(copy, original.file_id(c.id));
       EXPECT_EQ(k.cls, c.cls);
       EXPECT_LT((k.position - c.position).norm(), 1e-6);
       EXPECT_EQ(k.covariance.has_value(), c.covariance.has_value());
@@ -432,8 +440,14 @@ TEST_P(RoundTripTest, SameConesStartLanesAndClosedFlag) {
     for (size_t i = 0; i < left.size(); ++i) EXPECT_LT((copy_left[i] - left[i]).norm(), 1e-6);
     for (size_t i = 0; i < right.size(); ++i) EXPECT_LT((copy_right[i] - right[i]).norm(), 1e-6);
     if (p.ext == ".csv") {
-      EXPECT_EQ(copy.left_lane, original.left_lane);
-      EXPECT_EQ(copy.right_lane, original.right_lane);
+      // the same cones by the ids the file gave them
+      const auto file_ids = [](const Track& t, const std::vector<int>& lane) {
+        std::vector<uint64_t> ids;
+        for (int id : lane) ids.push_back(t.file_id(id));
+        return ids;
+      };
+      EXPECT_EQ(file_ids(copy, copy.left_lane), file_ids(original, original.left_lane));
+      EXPECT_EQ(file_ids(copy, copy.right_lane), file_ids(original, original.right_lane));
     }
   }
 
@@ -477,11 +491,48 @@ TEST(WriteEufsCsv, IdsThatAreNotInFileOrderSurvive) {
   write_eufs_csv(track, dir / "ids.csv");
   const Track copy = read_track(dir / "ids.csv");
   for (const Cone& c : track.cones) {
-    EXPECT_EQ(copy.cone(c.id).cls, c.cls);
-    EXPECT_EQ(copy.cone(c.id).position, c.position);
+    EXPECT_EQ(cone_with_file_id(copy, static_cast<uint64_t>(c.id)).cls, c.cls);
+    EXPECT_EQ(cone_with_file_id(copy, static_cast<uint64_t>(c.id)).position, c.position);
   }
-  EXPECT_EQ(copy.left_lane, track.left_lane);
-  EXPECT_EQ(copy.right_lane, track.right_lane);
+  const auto file_ids = [&copy](const std::vector<int>& lane) {
+    std::vector<int> out;
+    for (int id : lane) out.push_back(static_cast<int>(copy.file_id(id)));
+    return out;
+  };
+  EXPECT_EQ(file_ids(copy.left_lane), track.left_lane);
+  EXPECT_EQ(file_ids(copy.right_lane), track.right_lane);
+}
+
+// ids anywhere in 0 .. 2^64 - 1: the cones are numbered in file order, the file's ids kept and
+// written back unchanged, and nothing is sized by them
+TEST(EufsCsv, IdsAnywhereIn64Bits) {
+  TempDir dir;
+  const std::string text =
+      "tag,x,y,direction,x_variance,y_variance,xy_covariance,id,lane\n"
+      "car_start,-2.0,0.0,0.0,0.0,0.0,0.0,,open\n"
+      "blue,0.0,2.0,0.0,0.0,0.0,0.0,18446744073709551615,left\n"
+      "blue,5.0,2.0,0.0,0.0,0.0,0.0,9223372036854775808,left\n"
+      "yellow,0.0,-2.0,0.0,0.0,0.0,0.0,9223372036854775807,right\n"
+      "yellow,5.0,-2.0,0.0,0.0,0.0,0.0,0,right\n"
+      "unknown,9.0,0.0,0.0,0.0,0.0,0.0,,\n";
+  const Track t = parse_track(text, TrackFormat::kEufsCsv, "huge.csv");
+  ASSERT_EQ(t.cones.size(), 5u);
+  for (size_t i = 0; i < t.cones.size(); ++i) EXPECT_EQ(t.cones[i].id, static_cast<int>(i));
+  EXPECT_EQ(t.file_id(0), 18446744073709551615ull);
+  EXPECT_EQ(t.file_id(1), 9223372036854775808ull);
+  EXPECT_EQ(t.file_id(2), 9223372036854775807ull);
+  EXPECT_EQ(t.file_id(3), 0ull);
+  // a cone without an id gets the next free one after the largest (past 2^64 - 1: 1, as 0 is
+  // taken)
+  EXPECT_EQ(t.file_id(4), 1ull);
+  write_eufs_csv(t, dir / "out.csv");
+  std::ifstream in(dir / "out.csv");
+  const std::string written((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_THAT(written, HasSubstr(",18446744073709551615,left\n"));
+  EXPECT_THAT(written, HasSubstr(",9223372036854775808,left\n"));
+  EXPECT_THAT(written, HasSubstr(",9223372036854775807,right\n"));
+  const Track again = read_track(dir / "out.csv");
+  EXPECT_EQ(again.file_ids, t.file_ids);
 }
 
 TEST(WriteEufsCsv, WritesTheHeaderCarStartAndTagNames) {
@@ -738,10 +789,17 @@ TEST(BadInput, RepeatedIdAndBadId) {
                   .what(),
               HasSubstr("id.csv:3: id: 4 is already used on line 2"));
   EXPECT_THAT(parse_error(header + "blue,0,1,0,0,0,0,-2\n", TrackFormat::kEufsCsv, "id.csv").what(),
-              HasSubstr("id.csv:2: id: expected an integer from 0 to 999999999, found '-2'"));
-  EXPECT_THAT(
-      parse_error(header + "blue,0,1,0,0,0,0,2147483647\n", TrackFormat::kEufsCsv, "id.csv").what(),
-      HasSubstr("id.csv:2: id: expected an integer from 0 to 999999999"));
+              HasSubstr("id.csv:2: id: expected an integer from 0 to 18446744073709551615, "
+                        "found '-2'"));
+  EXPECT_THAT(parse_error(header + "blue,0,1,0,0,0,0,18446744073709551616\n", TrackFormat::kEufsCsv,
+                          "id.csv")
+                  .what(),
+              HasSubstr("id.csv:2: id: expected an integer from 0 to 18446744073709551615"));
+  EXPECT_THAT(parse_error(header + "blue,0,1,0,0,0,0,18446744073709551615\n"
+                                   "blue,5,1,0,0,0,0,18446744073709551615\n",
+                          TrackFormat::kEufsCsv, "id.csv")
+                  .what(),
+              HasSubstr("id.csv:3: id: 18446744073709551615 is already used on line 2"));
 }
 
 TEST(BadInput, SecondCarStart) {
@@ -767,7 +825,7 @@ TEST(BadInput, TooManyCones) {
   std::string text = kEufsHeaderLine;
   for (size_t i = 0; i <= kMaxTrackCones; ++i) text += "blue," + std::to_string(i) + ",0,0,0,0,0\n";
   EXPECT_THAT(parse_error(text, TrackFormat::kEufsCsv, "many.csv").what(),
-              HasSubstr("more than 10000 cones"));
+              HasSubstr("more than 100000 cones"));
 }
 
 TEST(BadInput, MissingFileAndDirectory) {

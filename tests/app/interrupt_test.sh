@@ -1,0 +1,162 @@
+#!/usr/bin/env bash
+# End-to-end checks of interruptions and output safety (issue 18): SIGINT or SIGTERM stops a run
+# within a second with exit 130 or 143 and a folder that is clearly incomplete (no
+# metrics.json, an INCOMPLETE file); an unwritable output folder is refused before the run
+# (exit 2, nothing written); a regress interrupted and resumed gives the summary of one that
+# was not; a layout whose cone ids are near 2^63 runs like the same layout with small ids.
+# usage: interrupt_test.sh CONESIM_BINARY TRACKS_DIR
+set -uo pipefail
+bin="$(realpath "$1")"
+tracks="$(realpath "$2")"
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+. "$(dirname "$0")/check_lib.sh"
+cd "$work" || exit 1
+expect() {  # expect NAME CONDITION_TEXT : the condition (a test expression) holds
+  local name="$1"
+  shift
+  if "$@"; then passed=$((passed + 1)); else
+    echo "FAIL $name: $*"
+    failures=$((failures + 1))
+  fi
+}
+now_ms() { date +%s%3N; }
+
+# interrupt NAME SIGNAL STATUS SCENARIO ARGS...: starts the run, waits until its folder is made
+# and a second more, sends the signal and checks the exit within a second, its status and the
+# folder
+interrupt() {
+  local name="$1" signal="$2" status="$3"
+  shift 3
+  local out="$work/$name"
+  "$bin" run "$@" --no-plot --out "$out" >"$work/$name.out" 2>"$work/$name.err" &
+  local pid=$!
+  # the folder is made once the handlers are in place and the input is checked
+  for _ in $(seq 300); do
+    [ -d "$out" ] && break
+    sleep 0.1
+  done
+  sleep 1
+  local sent
+  sent=$(now_ms)
+  kill -s "$signal" "$pid"
+  wait "$pid"
+  local got=$? took=$(($(now_ms) - sent))
+  expect "$name: exit status $got, expected $status" [ "$got" -eq "$status" ]
+  expect "$name: stopped in $took ms, at most 1000" [ "$took" -le 1000 ]
+  expect_missing "$name: no metrics.json" "$out/metrics.json"
+  expect_text "$name" "$out/INCOMPLETE" "^interrupted by $signal at sim time"
+  expect_text "$name" "$work/$name.err" "^interrupted by $signal"
+}
+
+# 1: Ctrl-C and SIGTERM, also with SLAM threads (a shadow lane) and the LiDAR's worker
+interrupt sigint SIGINT 130 trackdrive
+interrupt sigterm_slam SIGTERM 143 trackdrive-graphslam --set 'slam.shadow=[ekf]'
+interrupt sigint_lidar SIGINT 130 trackdrive-lidar
+
+# 2: an output folder that cannot be written is refused before the run, nothing written
+if [ "$(id -u)" -ne 0 ]; then
+  mkdir -p "$work/readonly" && chmod 555 "$work/readonly"
+  ro="$work/readonly"
+else
+  ro=/proc/self  # a folder even root cannot create files in
+fi
+check unwritable_out 2 "$bin" run skidpad --no-plot --out "$ro"
+expect_text unwritable_out "$work/err" "^$ro: cannot write the results here"
+expect_missing unwritable_out "$ro/metrics.json"
+check unwritable_regress 2 "$bin" regress skidpad --seeds 1 --out "$ro"
+expect_text unwritable_regress "$work/err" "^$ro: cannot write the results here"
+# a folder the run would create under a file: refused, nothing made
+touch "$work/a-file"
+check out_under_file 2 "$bin" run skidpad --no-plot --out "$work/a-file/run"
+expect_missing out_under_file "$work/a-file/run"
+
+# 3: regress interrupted once a run has finished, then resumed: the summary of a regress that
+# was never interrupted (timing keys aside)
+runs=(skidpad acceleration --seeds 1-2 --jobs 1 --no-plot)
+check regress_whole 0 "$bin" regress "${runs[@]}" --out "$work/whole"
+"$bin" regress "${runs[@]}" --out "$work/cut" >"$work/cut.out" 2>"$work/cut.err" &
+pid=$!
+for _ in $(seq 600); do
+  [ -n "$(find "$work/cut" -name metrics.json 2>/dev/null | head -1)" ] && break
+  sleep 0.1
+done
+kill -s INT "$pid"
+wait "$pid"
+got=$?
+expect "regress_interrupted: exit $got, expected 130" [ "$got" -eq 130 ]
+expect_missing regress_interrupted "$work/cut/summary.json"
+expect_text regress_interrupted "$work/cut.err" 'interrupted by SIGINT: [0-9]+ of 4 runs finished.*--resume'
+check regress_resumed 0 "$bin" regress "${runs[@]}" --out "$work/cut" --resume
+expect_text regress_resumed "$work/err" 'runs reused from'
+same_summary() {  # the rows of two summary.json files without wall times and folders
+  python3 - "$1" "$2" <<'EOF'
+import json, sys
+def rows(path):
+    out = []
+    for r in json.load(open(path))["runs"]:
+        out.append({k: v for k, v in r.items()
+                    if "wall" not in k and "real_time" not in k and k != "dir"})
+    return sorted(out, key=lambda r: r["id"])
+sys.exit(0 if rows(sys.argv[1]) == rows(sys.argv[2]) else 1)
+EOF
+}
+expect "regress_resumed: the summary of the uninterrupted regress" \
+  same_summary "$work/whole/summary.json" "$work/cut/summary.json"
+# resuming with other runs is bad input
+check resume_other 2 "$bin" regress skidpad --seeds 3 --no-plot --out "$work/cut" --resume
+expect_text resume_other "$work/err" 'runs\.json differs'
+
+# compare passes SIGTERM on to its runs: it ends within a second with 143, writes no outputs,
+# and leaves no run behind
+"$bin" compare fst --track "$tracks/fssim/FSG.yaml" --seeds 1 --jobs 2 --no-plot \
+  --out "$work/cmp" >"$work/cmp.out" 2>"$work/cmp.err" &
+pid=$!
+sleep 3
+sent=$(now_ms)
+kill -s TERM "$pid"
+wait "$pid"
+got=$? took=$(($(now_ms) - sent))
+expect "compare_interrupted: exit $got, expected 143" [ "$got" -eq 143 ]
+expect "compare_interrupted: stopped in $took ms, at most 1000" [ "$took" -le 1000 ]
+expect_missing compare_interrupted "$work/cmp/compare.json"
+expect "compare_interrupted: no run left" [ -z "$(pgrep -f -- "--out $work/cmp/")" ]
+
+# 4: cone ids near 2^63 (below and above it): the same run as with the file's small ids, and
+# the ids come out as the file gave them
+check convert 0 "$bin" track convert "$tracks/fssim/FSG.yaml" "$work/small.csv"
+python3 - "$work/small.csv" "$work/huge.csv" <<'EOF'
+import sys
+rows = open(sys.argv[1]).read().splitlines()
+out = [rows[0]]
+for k, line in enumerate(rows[1:]):
+    f = line.split(",")
+    if f[7] != "":
+        f[7] = str(2**63 - 200 + 2 * int(f[7]) + (k % 2))
+    out.append(",".join(f))
+open(sys.argv[2], "w").write("\n".join(out) + "\n")
+EOF
+check small_ids 0 "$bin" run autocross --track "$work/small.csv" --no-plot --out "$work/small"
+check huge_ids 0 "$bin" run autocross --track "$work/huge.csv" --no-plot --out "$work/huge"
+same_run() {  # metrics.json of two runs equal apart from timing and cone ids
+  python3 - "$1" "$2" <<'EOF'
+import json, re, sys
+def clean(v):
+    if isinstance(v, dict):
+        return {k: clean(x) for k, x in v.items()
+                if "wall" not in k and "real_time" not in k and k not in ("cone_id", "cones_hit_ids", "track")}
+    if isinstance(v, list):
+        return [clean(x) for x in v]
+    if isinstance(v, str):
+        return re.sub(r"cone [0-9]+", "cone N", v)
+    return v
+a, b = (clean(json.load(open(p))) for p in sys.argv[1:3])
+sys.exit(0 if a == b else 1)
+EOF
+}
+expect "huge_ids: the same metrics as with small ids" \
+  same_run "$work/small/metrics.json" "$work/huge/metrics.json"
+expect_text huge_ids_below "$work/huge/track.csv" ',92233720368547756[0-9]{2},'
+expect_text huge_ids_above "$work/huge/track.csv" ',92233720368547(758[0-9]{2}|759[0-9]{2}|76[0-9]{3}),'
+
+report
