@@ -569,7 +569,10 @@ BaselineComparison compare_to_baseline(std::vector<RunRow>& rows,
   for (const RunRow& r : rows)
     if (const auto it = before.find(r.id); it != before.end())
       pairs[r.scenario].push_back({it->second, &r});
-  for (const auto& [scenario, list] : pairs) {
+  for (const auto& entry : pairs) {
+    // named, not bound: clang 14 cannot capture structured bindings in a lambda
+    const std::string& scenario = entry.first;
+    const auto& list = entry.second;
     auto median_worse = [&](const char* what, double RunRow::*figure) {
       std::vector<double> was, is;
       for (const auto& [b, r] : list)
@@ -836,6 +839,17 @@ void print_table(const std::vector<RunRow>& rows, std::ostream& out) {
   }
 }
 
+std::vector<RunRow> parse_baseline(const std::string& text, const std::string& name) {
+  std::vector<RunRow> rows;
+  try {
+    const json b = json::parse(text);
+    for (const json& r : b.at("runs")) rows.push_back(row_from_json(r));
+  } catch (const json::exception& e) {
+    throw InputError(name, 0, std::string("not a conesim regress summary.json: ") + e.what());
+  }
+  return rows;
+}
+
 int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& out,
                    std::ostream& progress) {
   using clock = std::chrono::steady_clock;
@@ -844,15 +858,10 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
   // the baseline is read first: a bad one stops everything before any run
   std::vector<RunRow> baseline;
   if (o.baseline) {
-    std::ifstream in(*o.baseline);
+    std::ifstream in(*o.baseline, std::ios::binary);
     if (!in) throw InputError(o.baseline->string(), 0, "cannot read the baseline summary");
-    try {
-      const json b = json::parse(in);
-      for (const json& r : b.at("runs")) baseline.push_back(row_from_json(r));
-    } catch (const json::exception& e) {
-      throw InputError(o.baseline->string(), 0,
-                       std::string("not a conesim regress summary.json: ") + e.what());
-    }
+    const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    baseline = parse_baseline(text, o.baseline->string());
   }
   fs::create_directories(o.out_dir);
   const RegressionPlan plan = plan_regression(self, o);
