@@ -90,8 +90,6 @@ std::string regress_json_target(std::string_view input) {
 
 }  // namespace
 
-}  // namespace
-
 const std::vector<std::string>& targets() {
   static const std::vector<std::string> all = {"fssim_yaml", "pacsim_yaml", "eufs_csv",
                                                "epfl_csv",   "scenario",    "regress_json"};

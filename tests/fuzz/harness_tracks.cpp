@@ -1,5 +1,6 @@
 #include <cmath>
 #include <exception>
+#include <filesystem>
 #include <set>
 #include <stdexcept>
 #include <typeinfo>
@@ -18,6 +19,9 @@ std::string describe(const std::exception& e) {
 std::string check_names(const InputError& e, const std::string& name) {
   const std::string what = e.what();
   if (what.starts_with(name) || what.starts_with("--set")) return "";
+  // an error inside another file the input names (a scenario's vehicle file) names that file
+  std::error_code ec;
+  if (!e.file().empty() && std::filesystem::is_regular_file(e.file(), ec)) return "";
   return "the error does not name the file " + name + ": " + what;
 }
 
