@@ -166,6 +166,32 @@ double number_or_nan(const json& j, const char* key) {
   return j[key].get<double>();
 }
 
+// a run's metrics.json read defensively: a value of another type than conesim writes (an older
+// or damaged file) counts as absent, so that one odd file gives a failed row, not a dead regress
+std::string text_or_empty(const json& j, const char* key) {
+  if (!j.is_object() || !j.contains(key) || !j[key].is_string()) return {};
+  return j[key].get<std::string>();
+}
+
+double number_or(const json& j, const char* key, double fallback) {
+  const double v = number_or_nan(j, key);
+  return std::isfinite(v) ? v : fallback;
+}
+
+bool flag_or_false(const json& j, const char* key) {
+  return j.is_object() && j.contains(key) && j[key].is_boolean() && j[key].get<bool>();
+}
+
+int count_or_zero(const json& j, const char* key) {
+  const double v = number_or_nan(j, key);
+  return std::isfinite(v) && std::abs(v) < 1e9 ? static_cast<int>(v) : 0;
+}
+
+json section_or_empty(const json& j, const char* key) {
+  if (!j.is_object() || !j.contains(key)) return json::object();
+  return j[key];
+}
+
 json finite_or_null(double v) {
   return std::isfinite(v) ? json(v) : json(nullptr);
 }
@@ -378,48 +404,48 @@ RunRow make_row(const RegressionRun& run, const json& m, int exit_code,
     r.refused = log_tail.find(kNotDrivable) != std::string::npos;
     return r;
   }
-  if (r.track.empty()) r.track = m.value("track", std::string());
-  r.event = m.value("event", std::string());
-  r.passed = m.value("passed", false) && exit_code == 0;
-  for (const json& f : m.value("pass_failures", json::array()))
+  if (r.track.empty()) r.track = text_or_empty(m, "track");
+  r.event = text_or_empty(m, "event");
+  r.passed = flag_or_false(m, "passed") && exit_code == 0;
+  for (const json& f : section_or_empty(m, "pass_failures"))
     r.reasons.push_back(f.is_string() ? f.get<std::string>() : f.dump());
-  if (m.value("passed", false) && exit_code != 0)
+  if (flag_or_false(m, "passed") && exit_code != 0)
     r.reasons.push_back("exit " + std::to_string(exit_code) +
                         (log_tail.empty() ? "" : ": " + log_tail));
-  r.dnf_reason = m.value("dnf_reason", std::string());
-  const json penalties = m.value("penalties", json::object());
-  r.cones_hit = penalties.value("cones_hit", 0);
-  r.off_course = penalties.value("off_course", 0);
-  for (const json& e : m.value("events", json::array())) {
+  r.dnf_reason = text_or_empty(m, "dnf_reason");
+  const json penalties = section_or_empty(m, "penalties");
+  r.cones_hit = count_or_zero(penalties, "cones_hit");
+  r.off_course = count_or_zero(penalties, "off_course");
+  for (const json& e : section_or_empty(m, "events")) {
     if (!e.is_object()) continue;
     RunEvent ev;
-    ev.kind = e.value("kind", std::string());
-    ev.t_s = e.value("t_s", 0.0);
-    ev.lap = e.value("lap", 0);
-    ev.x_m = e.value("x_m", 0.0);
-    ev.y_m = e.value("y_m", 0.0);
-    ev.penalty_s = e.value("penalty_s", 0.0);
-    ev.reason = e.value("reason", std::string());
+    ev.kind = text_or_empty(e, "kind");
+    ev.t_s = number_or(e, "t_s", 0.0);
+    ev.lap = count_or_zero(e, "lap");
+    ev.x_m = number_or(e, "x_m", 0.0);
+    ev.y_m = number_or(e, "y_m", 0.0);
+    ev.penalty_s = number_or(e, "penalty_s", 0.0);
+    ev.reason = text_or_empty(e, "reason");
     r.events.push_back(ev);
   }
-  r.laps = m.value("laps", 0);
-  for (const json& l : m.value("lap_times_s", json::array()))
+  r.laps = count_or_zero(m, "laps");
+  for (const json& l : section_or_empty(m, "lap_times_s"))
     if (l.is_number() && !(l.get<double>() >= r.best_lap_s)) r.best_lap_s = l.get<double>();
   // a DNF has no final time (metrics.json gives 0)
-  if (m.value("completed", false)) r.final_time_s = number_or_nan(m, "final_time_s");
+  if (flag_or_false(m, "completed")) r.final_time_s = number_or_nan(m, "final_time_s");
   r.lap_time_bound_s = number_or_nan(m, "lap_time_bound_s");
   if (std::isfinite(r.best_lap_s) && r.lap_time_bound_s > 0.0)
     r.bound_ratio = r.best_lap_s / r.lap_time_bound_s;
   // the driving SLAM back-end's figures (shadow back-ends are beside it under slam)
   if (m.contains("slam") && m["slam"].is_object() && !m["slam"].empty()) {
-    const std::string driving = m.value("slam_driving", std::string());
+    const std::string driving = text_or_empty(m, "slam_driving");
     const json& f = m["slam"].contains(driving) ? m["slam"][driving] : m["slam"].begin().value();
     r.map_rmse_m = number_or_nan(f, "map_rmse_m");
     r.ate_rmse_m = number_or_nan(f, "ate_rmse_m");
     r.da_correct_fraction = number_or_nan(f, "da_correct_fraction");
   }
   // raw-data perception: within 15 m, where the driver looks
-  const json p = m.value("perception", json::object());
+  const json p = section_or_empty(m, "perception");
   r.perception_recall = number_or_nan(p, p.contains("recall_15m") ? "recall_15m" : "recall");
   r.perception_precision =
       number_or_nan(p, p.contains("precision_15m") ? "precision_15m" : "precision");
@@ -571,7 +597,10 @@ BaselineComparison compare_to_baseline(std::vector<RunRow>& rows,
   for (const RunRow& r : rows)
     if (const auto it = before.find(r.id); it != before.end())
       pairs[r.scenario].push_back({it->second, &r});
-  for (const auto& [scenario, list] : pairs) {
+  for (const auto& entry : pairs) {
+    // named, not bound: clang 14 cannot capture structured bindings in a lambda
+    const std::string& scenario = entry.first;
+    const auto& list = entry.second;
     auto median_worse = [&](const char* what, double RunRow::*figure) {
       std::vector<double> was, is;
       for (const auto& [b, r] : list)
@@ -838,6 +867,17 @@ void print_table(const std::vector<RunRow>& rows, std::ostream& out) {
   }
 }
 
+std::vector<RunRow> parse_baseline(const std::string& text, const std::string& name) {
+  std::vector<RunRow> rows;
+  try {
+    const json b = json::parse(text);
+    for (const json& r : b.at("runs")) rows.push_back(row_from_json(r));
+  } catch (const json::exception& e) {
+    throw InputError(name, 0, std::string("not a conesim regress summary.json: ") + e.what());
+  }
+  return rows;
+}
+
 int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& out,
                    std::ostream& progress) {
   using clock = std::chrono::steady_clock;
@@ -846,15 +886,10 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
   // the baseline is read first: a bad one stops everything before any run
   std::vector<RunRow> baseline;
   if (o.baseline) {
-    std::ifstream in(*o.baseline);
+    std::ifstream in(*o.baseline, std::ios::binary);
     if (!in) throw InputError(o.baseline->string(), 0, "cannot read the baseline summary");
-    try {
-      const json b = json::parse(in);
-      for (const json& r : b.at("runs")) baseline.push_back(row_from_json(r));
-    } catch (const json::exception& e) {
-      throw InputError(o.baseline->string(), 0,
-                       std::string("not a conesim regress summary.json: ") + e.what());
-    }
+    const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    baseline = parse_baseline(text, o.baseline->string());
   }
   fs::create_directories(o.out_dir);
   check_output_writable(o.out_dir);

@@ -139,6 +139,10 @@ RunRow make_row(const RegressionRun& run, const nlohmann::json& metrics, int exi
 nlohmann::json row_to_json(const RunRow& row);
 RunRow row_from_json(const nlohmann::json& j);
 
+/// The rows of a stored summary.json (`--baseline`); `name` stands for the file in errors.
+/// Throws core::InputError when the text is not a summary.
+std::vector<RunRow> parse_baseline(const std::string& text, const std::string& name);
+
 /// Failed runs first, then regressed ones, each group in run order.
 void sort_failures_first(std::vector<RunRow>& rows);
 

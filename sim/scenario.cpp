@@ -861,8 +861,15 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
        [&](const YAML::Node& n) {
          if (n.IsScalar()) {
            s.vehicle_source = n.Scalar();
-           if (s.vehicle_source != "default")
-             s.vehicle = read_vehicle_file(resolve(file, n.Scalar()), context.warnings);
+           if (s.vehicle_source == "default") return;
+           // a file that is not there is this file's mistake, at this line
+           const fs::path vehicle_file = resolve(file, n.Scalar());
+           if (!fs::is_regular_file(vehicle_file))
+             top.fail(n, "vehicle",
+                      "expected default or a vehicle YAML file, got '" + n.Scalar() +
+                          "' (no such file" +
+                          (vehicle_file.is_relative() ? " beside the scenario or here)" : ")"));
+           s.vehicle = read_vehicle_file(vehicle_file, context.warnings);
            return;
          }
          const Where w{&context, "vehicle"};

@@ -1009,7 +1009,7 @@ Track read_track(const std::filesystem::path& file) {
   throw InputError(name, 0, "unknown extension '" + ext + "' (expected .yaml, .yml or .csv)");
 }
 
-void write_pacsim_yaml(const Track& track, const std::filesystem::path& file) {
+std::string pacsim_yaml_text(const Track& track) {
   std::ostringstream out;
   const auto point = [](const Vec2& p) {
     std::string s = "[";
@@ -1047,10 +1047,14 @@ void write_pacsim_yaml(const Track& track, const std::filesystem::path& file) {
     for (const Vec2& post : {g.left, g.right})
       out << "  - position: " << point(post) << "\n    class: timekeeping\n";
   cone_list("unknown", others);
-  write_text(out.str(), file);
+  return out.str();
 }
 
-void write_eufs_csv(const Track& track, const std::filesystem::path& file) {
+void write_pacsim_yaml(const Track& track, const std::filesystem::path& file) {
+  write_text(pacsim_yaml_text(track), file);
+}
+
+std::string eufs_csv_text(const Track& track) {
   std::ostringstream out;
   out << kEufsHeader << ",id,lane\n";
 
@@ -1087,7 +1091,11 @@ void write_eufs_csv(const Track& track, const std::filesystem::path& file) {
     return track.file_id(a->id) < track.file_id(b->id);
   });
   for (const Cone* c : rest) row(*c, "");
-  write_text(out.str(), file);
+  return out.str();
+}
+
+void write_eufs_csv(const Track& track, const std::filesystem::path& file) {
+  write_text(eufs_csv_text(track), file);
 }
 
 void write_track(const Track& track, const std::filesystem::path& file) {

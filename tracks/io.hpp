@@ -58,6 +58,9 @@ Track parse_track(const std::string& text, TrackFormat format, const std::string
 /// are not part of the format; a reader numbers the cones in file order.
 void write_pacsim_yaml(const Track& track, const std::filesystem::path& file);
 
+/// The text write_pacsim_yaml writes.
+std::string pacsim_yaml_text(const Track& track);
+
 /// Writes EUFS CSV: the header tag,x,y,direction,x_variance,y_variance,xy_covariance plus the
 /// `id` and `lane` columns that read_track reads back, a car_start row (yaw in the direction
 /// column, `closed` or `open` in the lane column), then the left lane and the right lane in
@@ -67,6 +70,9 @@ void write_pacsim_yaml(const Track& track, const std::filesystem::path& file);
 /// written as blue, yellow, orange, big_orange and unknown; gates are not written (a reader
 /// makes them again from the big orange cones).
 void write_eufs_csv(const Track& track, const std::filesystem::path& file);
+
+/// The text write_eufs_csv writes.
+std::string eufs_csv_text(const Track& track);
 
 /// Writes by extension: .yaml/.yml PacSim YAML, .csv EUFS CSV; throws InputError otherwise.
 void write_track(const Track& track, const std::filesystem::path& file);
