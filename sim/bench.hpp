@@ -1,7 +1,10 @@
 #pragma once
 // `conesim bench sensors`: the speed figures of the sensors and of the closed loop.
 
+#include <cstdint>
 #include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
 
 namespace conesim::sim {
 
@@ -9,5 +12,19 @@ namespace conesim::sim {
 /// frames, and trackdrive in closed loop with and without the LiDAR sweeping at 10 Hz.
 /// Medians over repeated runs; the machine's load shows in the spread (p10, p90 given too).
 nlohmann::json bench_sensors(int repeats, bool closed_loop);
+
+/// What `conesim bench soak` runs: a shipped scenario for many laps.
+struct SoakOptions {
+  std::string scenario = "trackdrive-lidar";
+  int laps = 100;
+  uint64_t seed = 1;
+  /// More `--set` values for the run.
+  std::vector<std::string> sets;
+};
+
+/// Runs the scenario for o.laps laps in this process and reports, lap by lap, the process's
+/// resident memory when the lap is counted and the driving SLAM update's p99 CPU time; then the
+/// last lap's memory against lap 10's and the last ten laps' p99 against the first ten's.
+nlohmann::json bench_soak(const SoakOptions& o);
 
 }  // namespace conesim::sim

@@ -661,6 +661,12 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   result.sim_time_s = core::to_seconds(t);
   result.wall_time_s = wall_s;
   result.driver_laps = driver_status.laps_counted;
+  if (slam) {
+    const SlamScorer& scorer = slam->scorer();
+    for (size_t i = 0; i < scorer.stamps().size() && i < scorer.update_cpu_ms().size(); ++i)
+      result.slam_update_cpu_ms.push_back(
+          {core::to_seconds(scorer.stamps()[i]), scorer.update_cpu_ms()[i]});
+  }
 
   // metrics.json (every key in docs/metrics.md)
   const RefereeResult& r = result.referee;

@@ -502,6 +502,18 @@ void add_bench_commands(CLI::App& app) {
   cmd->add_flag("--no-closed-loop", *no_loop, "Skip the two trackdrive runs");
   cmd->callback(
       [=] { std::cout << conesim::sim::bench_sensors(*repeats, !*no_loop).dump(2) << "\n"; });
+
+  // `conesim bench soak`: many laps in one process, memory and SLAM update time lap by lap
+  auto* soak = bench->add_subcommand(
+      "soak",
+      "A long trackdrive (default: trackdrive-lidar, 100 laps): RSS and SLAM update p99 "
+      "lap by lap, lap 10 against the last, the first ten laps against the last ten");
+  auto options = std::make_shared<conesim::sim::SoakOptions>();
+  soak->add_option("--scenario", options->scenario, "A shipped scenario or file");
+  soak->add_option("--laps", options->laps, "Laps to drive")->check(CLI::Range(20, 1000));
+  soak->add_option("--seed", options->seed, "The scenario seed");
+  soak->add_option("--set", options->sets, "key.path=value, as for conesim run");
+  soak->callback([=] { std::cout << conesim::sim::bench_soak(*options).dump(2) << "\n"; });
 }
 
 }  // namespace
