@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <sstream>
 
@@ -189,6 +191,98 @@ nlohmann::json bench_tracks(const std::vector<int>& cone_counts, int repeats,
   if (keep_dir.empty()) fs::remove_all(dir);
   out["layouts"] = rows;
   out["target"] = "validate under 1 s at 20000 cones";
+  return out;
+}
+
+namespace {
+
+// the process's resident memory, MB (/proc/self/statm: pages)
+double resident_mb() {
+  std::ifstream statm("/proc/self/statm");
+  long pages_total = 0, pages_resident = 0;
+  statm >> pages_total >> pages_resident;
+  return static_cast<double>(pages_resident) * static_cast<double>(::sysconf(_SC_PAGESIZE)) / 1e6;
+}
+
+// the p-quantile (nearest rank) of a sample; null when empty
+nlohmann::json quantile(std::vector<double> v, double q) {
+  if (v.empty()) return nullptr;
+  std::sort(v.begin(), v.end());
+  const size_t rank = static_cast<size_t>(std::ceil(q * static_cast<double>(v.size())));
+  return v[std::clamp<size_t>(rank, 1, v.size()) - 1];
+}
+
+}  // namespace
+
+nlohmann::json bench_soak(const SoakOptions& o) {
+  std::vector<std::string> sets = o.sets;
+  sets.push_back("seed=" + std::to_string(o.seed));
+  sets.push_back("driver.trackdrive_laps=" + std::to_string(o.laps));
+  // room for every lap: two minutes each
+  sets.push_back("referee.timeout_trackdrive_total_s=" + std::to_string(120 * o.laps));
+  const Scenario s = load_scenario(find_scenario(o.scenario), sets);
+
+  // the process's memory when each lap is counted
+  std::vector<double> lap_end_s, lap_rss_mb;
+  RunOptions options;
+  options.out_dir =
+      std::filesystem::temp_directory_path() / ("conesim-soak-" + std::to_string(::getpid()));
+  options.plot = false;
+  options.on_tick = [&](core::TimeUs t, const RefereeResult& r) {
+    while (static_cast<int>(lap_end_s.size()) < r.laps) {
+      lap_end_s.push_back(core::to_seconds(t));
+      lap_rss_mb.push_back(resident_mb());
+    }
+  };
+  const double rss_start_mb = resident_mb();
+  const RunResult r = run_scenario(s, scenario_track(s), options);
+  std::filesystem::remove_all(options.out_dir);
+
+  // the SLAM updates of laps [from, to) (1-based), CPU ms
+  auto updates_of_laps = [&](int from, int to) {
+    const double t0 = from <= 1 ? 0.0 : lap_end_s[static_cast<size_t>(from - 2)];
+    const double t1 = lap_end_s[static_cast<size_t>(to - 2)];
+    std::vector<double> ms;
+    for (const auto& [t_s, cpu_ms] : r.slam_update_cpu_ms)
+      if (t_s >= t0 && t_s < t1) ms.push_back(cpu_ms);
+    return ms;
+  };
+  nlohmann::json per_lap = nlohmann::json::array();
+  for (size_t k = 0; k < lap_end_s.size(); ++k) {
+    const std::vector<double> ms =
+        updates_of_laps(static_cast<int>(k) + 1, static_cast<int>(k) + 2);
+    per_lap.push_back({{"lap", k + 1},
+                       {"end_s", lap_end_s[k]},
+                       {"rss_mb", lap_rss_mb[k]},
+                       {"slam_updates", ms.size()},
+                       {"slam_update_cpu_ms_p99", quantile(ms, 0.99)}});
+  }
+  nlohmann::json out = {{"scenario", o.scenario},
+                        {"seed", o.seed},
+                        {"laps", r.referee.laps},
+                        {"completed", r.referee.completed},
+                        {"dnf_reason", r.referee.dnf_reason},
+                        {"cones_hit", r.referee.cones_hit.size()},
+                        {"off_course", r.referee.off_course},
+                        {"sim_time_s", r.sim_time_s},
+                        {"wall_time_s", r.wall_time_s},
+                        {"rss_start_mb", rss_start_mb},
+                        {"per_lap", per_lap}};
+  const int n = static_cast<int>(lap_end_s.size());
+  if (n >= 20) {
+    const double first = lap_rss_mb[9], last = lap_rss_mb[static_cast<size_t>(n - 1)];
+    out["rss_lap10_mb"] = first;
+    out["rss_last_lap_mb"] = last;
+    out["rss_growth_fraction"] = last / first - 1.0;
+    const nlohmann::json p_first = quantile(updates_of_laps(1, 11), 0.99);
+    const nlohmann::json p_last = quantile(updates_of_laps(n - 9, n + 1), 0.99);
+    out["slam_update_cpu_ms_p99_first10"] = p_first;
+    out["slam_update_cpu_ms_p99_last10"] = p_last;
+    if (p_first.is_number() && p_last.is_number())
+      out["slam_update_p99_ratio"] = p_last.get<double>() / p_first.get<double>();
+  }
+  out["targets"] = {{"rss_growth_fraction", "<= 0.10 (the last lap's RSS within 10 % of lap 10's)"},
+                    {"slam_update_p99_ratio", "<= 1.25 (last ten laps' p99 over the first ten's)"}};
   return out;
 }
 

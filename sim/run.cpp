@@ -181,6 +181,110 @@ nlohmann::json events_json(const std::vector<RefereeEvent>& events) {
   return out;
 }
 
+// where the car was when a fault began: the lap in progress (laps counted + 1) and the pose
+struct FaultStart {
+  int lap = 0;
+  core::Pose2 pose;
+};
+
+// the driving estimate's position error at a trajectory row, with the true distance driven
+struct TrajectoryError {
+  TimeUs t = 0;
+  double distance_m = 0.0;
+  core::Vec2 position;
+  double error_m = 0.0;
+};
+
+// the fault events among the referee's, in time order: kind `fault`, when it began and ended,
+// what it is, the car's lap and pose at its start
+nlohmann::json with_fault_events(nlohmann::json events, const std::vector<Fault>& faults,
+                                 const std::vector<std::optional<FaultStart>>& starts) {
+  for (size_t i = 0; i < faults.size(); ++i) {
+    if (!starts[i]) continue;  // the run ended before it began
+    const Fault& f = faults[i];
+    events.push_back(
+        {{"kind", "fault"},
+         {"t_s", round_to(f.start_s, 1e-3)},
+         {"end_s", f.end_s ? nlohmann::json(round_to(*f.end_s, 1e-3)) : nlohmann::json()},
+         {"what", to_string(f.kind)},
+         {"lap", starts[i]->lap},
+         {"x_m", round_to(starts[i]->pose.x, 1e-3)},
+         {"y_m", round_to(starts[i]->pose.y, 1e-3)},
+         {"yaw_rad", round_to(starts[i]->pose.yaw, 1e-4)},
+         {"reason", f.describe()},
+         {"penalty_s", 0.0}});
+  }
+  std::stable_sort(events.begin(), events.end(),
+                   [](const nlohmann::json& a, const nlohmann::json& b) {
+                     return a.at("t_s").get<double>() < b.at("t_s").get<double>();
+                   });
+  return events;
+}
+
+// the RMSE of the errors at the rows in [from, to); null without a row
+nlohmann::json rmse_between(const std::vector<TrajectoryError>& errors, TimeUs from, TimeUs to) {
+  double sum = 0.0;
+  int n = 0;
+  for (const TrajectoryError& e : errors)
+    if (e.t >= from && e.t < to) sum += e.error_m * e.error_m, ++n;
+  if (n == 0) return nullptr;
+  return round_to(std::sqrt(sum / n), 1e-4);
+}
+
+// the map error of the last map_error_over_distance row at or before `distance_m` (null
+// without SLAM or before the first row)
+nlohmann::json map_rmse_at(const nlohmann::json& slam_metrics, double distance_m) {
+  nlohmann::json at = nullptr;
+  if (slam_metrics.is_null() || !slam_metrics.contains("map_error_over_distance")) return at;
+  for (const nlohmann::json& row : slam_metrics.at("map_error_over_distance")) {
+    if (row.at("distance_m").get<double>() > distance_m) break;
+    at = row.at("rmse_m");
+  }
+  return at;
+}
+
+// the true distance driven by time t
+double distance_at(const std::vector<TrajectoryError>& errors, TimeUs t) {
+  double d = 0.0;
+  for (const TrajectoryError& e : errors) {
+    if (e.t > t) break;
+    d = e.distance_m;
+  }
+  return d;
+}
+
+// metrics.json's `faults`: each fault, what it did, and the driving estimate's error and the
+// map's before, during and after it
+nlohmann::json faults_json(const std::vector<Fault>& faults, const FaultCounts& counts,
+                           const std::vector<TrajectoryError>& errors,
+                           const nlohmann::json& slam_metrics, int frames_out_of_order) {
+  nlohmann::json out = nlohmann::json::array();
+  const TimeUs run_end = errors.empty() ? 0 : errors.back().t + 1;
+  for (size_t i = 0; i < faults.size(); ++i) {
+    const Fault& f = faults[i];
+    const TimeUs start = core::from_seconds(f.start_s);
+    const TimeUs end = f.end_s ? core::from_seconds(*f.end_s) : run_end;
+    nlohmann::json j = {
+        {"kind", to_string(f.kind)},
+        {"start_s", round_to(f.start_s, 1e-3)},
+        {"end_s", f.end_s ? nlohmann::json(round_to(*f.end_s, 1e-3)) : nlohmann::json()},
+        {"what", f.describe()},
+        {"affected", i < counts.affected.size() ? counts.affected[i] : 0},
+        {"trajectory_rmse_before_m", rmse_between(errors, 0, start)},
+        {"trajectory_rmse_during_m", rmse_between(errors, start, end)},
+        {"trajectory_rmse_after_m",
+         f.end_s ? rmse_between(errors, end, run_end) : nlohmann::json()},
+        {"map_rmse_before_m", map_rmse_at(slam_metrics, distance_at(errors, start))},
+        {"map_rmse_during_m", map_rmse_at(slam_metrics, distance_at(errors, end))},
+        {"map_rmse_after_m",
+         f.end_s && !slam_metrics.is_null() ? slam_metrics.at("map_rmse_m") : nlohmann::json()},
+    };
+    if (f.kind == FaultKind::kDelayJitter) j["frames_out_of_order"] = frames_out_of_order;
+    out.push_back(std::move(j));
+  }
+  return out;
+}
+
 }  // namespace
 
 std::string run_bounds_problem(const tracks::Track& track) {
@@ -456,6 +560,10 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   std::vector<TimeUs> trajectory_t;
   std::vector<core::Pose2> trajectory_odometry;
   auto is_knocked = [&referee](int id) { return referee.is_knocked(id); };
+  // the faults: where the car was when each began, and the driving estimate's error at each
+  // trajectory row with the true distance driven by then (their cost in metrics.json)
+  std::vector<std::optional<FaultStart>> fault_starts(s.faults.size());
+  std::vector<TrajectoryError> trajectory_errors;
 
   TimeUs t = 0;
   core::VehicleCommand command;
@@ -476,6 +584,10 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
         dnf_override = "physics diverged";
         break;
       }
+      // the faults that begin by now: the car's place and lap then
+      for (size_t i = 0; i < s.faults.size(); ++i)
+        if (!fault_starts[i] && t >= core::from_seconds(s.faults[i].start_s))
+          fault_starts[i] = FaultStart{referee.laps() + 1, truth.pose};
       // perception: perfect cones in view, or the cone sensor's latest delivered frame
       core::ConeObservations obs;
       std::vector<int> ids;
@@ -495,6 +607,8 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       } else {
         if (noisy_perception) {
           while (auto d = rig.take_detections(t)) {
+            // a frame delivered after a newer one (delay jitter) is too old to use
+            if (!s.faults.empty() && d->observations.stamp < latest_detections.stamp) continue;
             latest_detections = std::move(d->observations);
             latest_capture_pose = d->capture_pose;
             for (int id : d->labels.cone_id)
@@ -560,6 +674,15 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
                     truth.steer_rad, command.accel_mps2, driving_pose.x, driving_pose.y,
                     driving_pose.yaw);
       trajectory_rows.push_back(row);
+      if (!s.faults.empty()) {
+        const double along =
+            trajectory_errors.empty()
+                ? 0.0
+                : trajectory_errors.back().distance_m +
+                      (truth.pose.position() - trajectory_errors.back().position).norm();
+        trajectory_errors.push_back({t, along, truth.pose.position(),
+                                     (driving_pose.position() - truth.pose.position()).norm()});
+      }
       trajectory_t.push_back(t);
       if (slam) trajectory_odometry.push_back(slam->odometry_pose_now(t));
     }
@@ -630,12 +753,31 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   // the driver's own word on why it could not go on
   if (!result.referee.completed && *driver_status.problem)
     result.referee.dnf_reason += std::string(" (driver: ") + driver_status.problem + ")";
+  // the faults that had begun by then, named
+  if (!result.referee.completed) {
+    std::string begun;
+    for (size_t i = 0; i < s.faults.size(); ++i)
+      if (fault_starts[i])
+        begun += (begun.empty() ? "" : "; ") + to_string(s.faults[i].kind) + ": " +
+                 s.faults[i].describe();
+    if (!begun.empty()) {
+      result.referee.dnf_reason += " (after faults: " + begun + ")";
+      for (RefereeEvent& e : result.referee.events)
+        if (e.kind == RefereeEvent::Kind::kDnf) e.reason += " (after faults: " + begun + ")";
+    }
+  }
   const nlohmann::json slam_metrics = slam ? slam->metrics() : nlohmann::json();
   result.failures = check_pass(s.pass, result.referee, slam_metrics);
   result.passed = result.failures.empty();
   result.sim_time_s = core::to_seconds(t);
   result.wall_time_s = wall_s;
   result.driver_laps = driver_status.laps_counted;
+  if (slam) {
+    const SlamScorer& scorer = slam->scorer();
+    for (size_t i = 0; i < scorer.stamps().size() && i < scorer.update_cpu_ms().size(); ++i)
+      result.slam_update_cpu_ms.push_back(
+          {core::to_seconds(scorer.stamps()[i]), scorer.update_cpu_ms()[i]});
+  }
 
   // metrics.json (every key in docs/metrics.md)
   const RefereeResult& r = result.referee;
@@ -658,7 +800,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
         {"cones_hit_ids", file_ids(track, r.cones_hit)},
         {"off_course", r.off_course},
         {"penalty_time_s", round_to(r.final_time_s - r.raw_time_s, 1e-3)}}},
-      {"events", events_json(r.events)},
+      {"events", with_fault_events(events_json(r.events), s.faults, fault_starts)},
       {"raw_time_s", round_to(r.raw_time_s, 1e-3)},
       {"final_time_s", round_to(r.final_time_s, 1e-3)},
       {"sim_time_s", round_to(result.sim_time_s, 1e-3)},
@@ -681,6 +823,14 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
          round_to(rig.stats().stereo_detect_ms_total / std::max(1, rig.stats().camera_frames),
                   1e-3)}}},
   };
+  // each fault, what it did and what it cost (a run without faults has no such key)
+  if (!s.faults.empty()) {
+    FaultCounts counts = rig.fault_counts();
+    if (slam) counts.add(slam->fault_counts());
+    m["faults"] = faults_json(s.faults, counts, trajectory_errors, slam_metrics,
+                              slam ? slam->frames_out_of_order() : 0);
+    m["sensors"]["lidar_sweeps_lost"] = rig.stats().lidar_sweeps_lost;
+  }
   // the plug-ins in the loop, by name (a run of the built-in stack has no such key)
   if (s.perception_plugin || s.slam_plugin || s.driver_plugin) {
     auto name = [](const std::optional<PluginSpec>& p, const std::string& builtin) {

@@ -60,6 +60,9 @@ struct RunResult {
   double wall_time_s = 0.0;
   int driver_laps = 0;
   nlohmann::json metrics;
+  /// The driving SLAM lane's updates: the frame's stamp (sim s) and the update's CPU time (ms),
+  /// in order (empty without SLAM; `conesim bench soak` compares laps by them).
+  std::vector<std::pair<double, double>> slam_update_cpu_ms;
   /// What went wrong without touching the result (a picture gnuplot could not draw).
   std::vector<std::string> warnings;
   /// The signal (SIGINT, SIGTERM) that stopped the run before its verdict, 0 when none did: the

@@ -786,6 +786,118 @@ void read_autonomy(const YAML::Node& n, Context& context, const fs::path& file, 
         }}});
 }
 
+// one fault's window and the parameters of its kind (a key of another kind is unknown here)
+Fault read_fault(const YAML::Node& n, FaultKind kind, const Where& w) {
+  Fault f;
+  f.kind = kind;
+  std::vector<Field> fields = {
+      number("start_s", f.start_s, w),
+      {"end_s",
+       [&f, w](const YAML::Node& v) {
+         if (!v.IsNull()) f.end_s = read_number(v, w, "end_s");
+       }},
+  };
+  switch (kind) {
+    case FaultKind::kLidarDropout:
+      fields.push_back(number("fraction", f.fraction, w));
+      break;
+    case FaultKind::kLidarSectorBlackout:
+      fields.push_back(number("from_deg", f.from_deg, w));
+      fields.push_back(number("to_deg", f.to_deg, w));
+      break;
+    case FaultKind::kLidarLostSweeps:
+      fields.push_back(integer("every", f.every, w));
+      fields.push_back(number("probability", f.probability, w));
+      break;
+    case FaultKind::kImuBiasStep:
+      fields.push_back(number("gyro_bias_rps", f.gyro_bias_rps, w));
+      fields.push_back(number("accel_bias_mps2", f.accel_bias_mps2, w));
+      break;
+    case FaultKind::kWheelSlip:
+      fields.push_back(number("factor", f.factor, w));
+      break;
+    case FaultKind::kDelayJitter:
+      fields.push_back(number("max_delay_s", f.max_delay_s, w));
+      fields.push_back({"out_of_order", [&f, w](const YAML::Node& v) {
+                          f.out_of_order = read_bool(v, w, "out_of_order");
+                        }});
+      break;
+    case FaultKind::kCameraBlackout:
+    case FaultKind::kCameraFrozen:
+    case FaultKind::kGnssOutage:
+      break;
+  }
+  if (!n.IsNull()) read_section(n, w, fields);
+  if (const std::string e = f.validate(); !e.empty()) w.context->fail_check(w.section, e);
+  return f;
+}
+
+// `faults:` a map from kind to one window ({start_s, end_s, ...}) or a list of them; null or {}
+// for none
+std::vector<Fault> read_faults(const YAML::Node& n, Context& context) {
+  std::vector<Fault> faults;
+  if (n.IsNull()) return faults;
+  const Where w{&context, "faults"};
+  std::vector<Field> fields;
+  for (const std::string& name : fault_kind_names()) {
+    const FaultKind kind = *fault_kind_from_string(name);
+    fields.push_back(
+        {name, [&faults, &context, kind, name](const YAML::Node& v) {
+           if (v.IsSequence()) {
+             for (size_t i = 0; i < v.size(); ++i)
+               faults.push_back(read_fault(
+                   v[i], kind, Where{&context, "faults." + name + "[" + std::to_string(i) + "]"}));
+             return;
+           }
+           faults.push_back(read_fault(v, kind, Where{&context, "faults." + name}));
+         }});
+  }
+  read_section(n, w, fields);
+  return faults;
+}
+
+// the faults against the sensors and the stack they act on: a fault of a sensor that is not in
+// the loop would do nothing, which is refused rather than reported as survived
+void check_faults(const Scenario& s, const Context& context) {
+  const bool lidar = s.sensors.lidar_enabled || s.perception == "lidar" || s.perception == "fused";
+  const bool camera =
+      s.sensors.camera_enabled || s.perception == "stereo" || s.perception == "fused";
+  for (const Fault& f : s.faults) {
+    const std::string key = "faults." + to_string(f.kind);
+    switch (f.kind) {
+      case FaultKind::kLidarDropout:
+      case FaultKind::kLidarSectorBlackout:
+      case FaultKind::kLidarLostSweeps:
+        if (!lidar)
+          context.fail(key, "no LiDAR in the loop (perception: " + s.perception +
+                                "); expected perception lidar or fused, or sensors.lidar.enabled");
+        break;
+      case FaultKind::kCameraBlackout:
+      case FaultKind::kCameraFrozen:
+        if (!camera)
+          context.fail(key, "no camera in the loop (perception: " + s.perception +
+                                "); expected perception stereo or fused, or "
+                                "sensors.camera.enabled");
+        break;
+      case FaultKind::kImuBiasStep:
+      case FaultKind::kWheelSlip:
+        if (s.slam == "none")
+          context.fail(key,
+                       "the IMU and wheel encoders feed SLAM's odometry, and this scenario runs "
+                       "no SLAM (slam: none); expected slam: graph, ekf, fastslam1 or fastslam2");
+        break;
+      case FaultKind::kDelayJitter:
+        if (s.perception == "ground_truth")
+          context.fail(key,
+                       "ground-truth perception delivers no frames to delay; expected "
+                       "perception cone_sensor, lidar, stereo or fused");
+        break;
+      case FaultKind::kGnssOutage:
+        break;
+    }
+  }
+}
+
 }  // namespace
 
 vehicle_models::VehicleParams load_vehicle(const fs::path& file) {
@@ -996,6 +1108,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                       number("pitch_down_deg", cam.pitch_down_deg, c)});
                }}});
        }},
+      {"faults", [&](const YAML::Node& n) { s.faults = read_faults(n, context); }},
       {"pass",
        [&](const YAML::Node& n) {
          const Where w{&context, "pass"};
@@ -1209,6 +1322,8 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   if (camera_disabled && raw_camera)
     context.fail("sensors.camera.enabled",
                  "false contradicts perception: " + s.perception + ", which needs the camera");
+
+  check_faults(s, context);
 
   // the camera renders into the car model's offscreen buffer
   {

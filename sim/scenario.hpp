@@ -15,6 +15,7 @@
 #include "sensors/stereo_camera.hpp"
 #include "sensors/vehicle_sensors.hpp"
 #include "sim/autonomy.hpp"
+#include "sim/faults.hpp"
 #include "sim/referee.hpp"
 #include "slam/factory.hpp"
 #include "tracks/generator.hpp"
@@ -153,6 +154,9 @@ struct Scenario {
   /// The car stands still this long before the driver may go (the go signal), seconds; the
   /// odometry learns the gyro bias meanwhile.
   double start_delay_s = 1.0;
+  /// Sensor and vehicle faults (`faults:`), in the order read: kinds in fault_kind_names()
+  /// order, each kind's windows in the order given. Empty: none.
+  std::vector<Fault> faults;
   /// Where the scenario was read from (empty for a built-in default).
   std::filesystem::path source_file;
   /// What the reader let pass but the user should hear of ("file:line: key: given again").

@@ -1,9 +1,11 @@
 #include "sim/sensor_rig.hpp"
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <stdexcept>
@@ -146,7 +148,13 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
       dump_(dump),
       run_dir_(run_dir),
       tap_(tap),
-      lidar_rng_(core::derive_seed(s.seed, kLidarStream)) {
+      lidar_rng_(core::derive_seed(s.seed, kLidarStream)),
+      faults_(s.faults, s.seed),
+      fault_counts_(faults_.zero_counts()) {
+  for (const Fault& f : s.faults) {
+    jitter_ = jitter_ || f.kind == FaultKind::kDelayJitter;
+    freezes_ = freezes_ || f.kind == FaultKind::kCameraFrozen;
+  }
   // the cone sensor: the perception of `perception: cone_sensor`, or dumped
   if (s.perception == "cone_sensor" || dump_.sensors.count("detections")) {
     if (const std::string e = s.sensors.cone_sensor.validate(); !e.empty())
@@ -299,28 +307,44 @@ void SensorRig::end_sweep() {
       plugin_lidar && !perception_->uses_camera() ? perception_.get() : nullptr;
   const slam::frontend::SweepMotion motion =
       perception_ ? perception_->motion() : slam::frontend::SweepMotion{};
-  pending_scan_ = worker_->post([this, sweep = casting_, start, begin, columns, detector, plugin,
-                                 motion, end,
-                                 window = pose_window(lidar_->column_time(start, begin), end)] {
-    sweep->cast(*lidar_, lidar_rng_, start, begin, columns, window);
-    SweepResult r{
-        std::move(sweep->scan), std::nullopt, sweep->cast_ms, 0.0, std::nullopt, {}, end, motion};
-    if (detector) {
-      const auto t0 = clock::now();
-      r.detections = detector->detect(r.scan.cloud, motion);
-      r.detect_ms = ms_between(t0, clock::now());
-    }
-    if (plugin) {
-      const auto t0 = clock::now();
-      try {
-        r.plugin_frame = plugin->plugin_lidar(r.scan.cloud, end, motion);
-      } catch (const PluginFailure& e) {
-        r.plugin_failure = e.what();
-      }
-      r.detect_ms = ms_between(t0, clock::now());
-    }
-    return r;
-  });
+  const int64_t index = start / lidar_->config().sweep_period_us();
+  pending_scan_ =
+      worker_->post([this, sweep = casting_, start, begin, columns, detector, plugin, motion, end,
+                     index, window = pose_window(lidar_->column_time(start, begin), end)] {
+        sweep->cast(*lidar_, lidar_rng_, start, begin, columns, window);
+        SweepResult r{std::move(sweep->scan),
+                      std::nullopt,
+                      sweep->cast_ms,
+                      0.0,
+                      std::nullopt,
+                      {},
+                      end,
+                      motion,
+                      false,
+                      faults_.zero_counts()};
+        // the faults: a lost sweep never reaches perception; dropout and blind sectors take
+        // points before the detector sees them
+        if (!faults_.empty()) {
+          r.lost = faults_.lidar_sweep_lost(index, end, r.fault_counts);
+          if (r.lost) return r;
+          faults_.apply_lidar(r.scan.cloud, r.scan.labels, r.fault_counts);
+        }
+        if (detector) {
+          const auto t0 = clock::now();
+          r.detections = detector->detect(r.scan.cloud, motion);
+          r.detect_ms = ms_between(t0, clock::now());
+        }
+        if (plugin) {
+          const auto t0 = clock::now();
+          try {
+            r.plugin_frame = plugin->plugin_lidar(r.scan.cloud, end, motion);
+          } catch (const PluginFailure& e) {
+            r.plugin_failure = e.what();
+          }
+          r.detect_ms = ms_between(t0, clock::now());
+        }
+        return r;
+      });
 
   // the next sweep
   sweep_start_ += lidar_->config().sweep_period_us();
@@ -345,6 +369,11 @@ void SensorRig::collect_sweep() {
   stats_.lidar_ms_total += result.cast_ms;
   const int index = stats_.lidar_scans++;
   stats_.lidar_points += static_cast<int64_t>(scan.cloud.points.size());
+  fault_counts_.add(result.fault_counts);
+  if (result.lost) {
+    ++stats_.lidar_sweeps_lost;
+    return;
+  }
 
   // the tap gets the sweep as a perception plug-in does, when its latency has passed
   if (tap_ && tap_->kinds().lidar) {
@@ -377,7 +406,7 @@ void SensorRig::collect_sweep() {
         poses_.at(result.plugin_frame->stamp >= 0 ? result.plugin_frame->stamp : poses_.newest())
             .planar(),
         [&referee](int id) { return referee.is_knocked(id); });
-    if (d) cone_queue_.push_back({pending_delivery_us_, std::move(*d)});
+    if (d) enqueue(pending_delivery_us_, std::move(*d), 0);
   }
   // the sweep's cones go to SLAM once the perception latency has passed
   if (result.detections && referee_) {
@@ -386,7 +415,7 @@ void SensorRig::collect_sweep() {
     DeliveredDetections d = perception_->on_lidar(
         scan, *result.detections, poses_.at(result.detections->stamp).planar(),
         [&referee](int id) { return referee.is_knocked(id); });
-    cone_queue_.push_back({pending_delivery_us_, std::move(d)});
+    enqueue(pending_delivery_us_, std::move(d), 0);
   }
   if (dump_.sensors.count("lidar") && index % dump_.every == 0)
     dump_sweep(index, scan, result.detections);
@@ -468,7 +497,7 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
       with_depth_, frame_, frame_labels_);
   stats_.camera_ms_total += std::chrono::duration<double, std::milli>(clock::now() - start).count();
   const int index = stats_.camera_frames++;
-  if (tap_ && tap_->kinds().camera) tap_->on_stereo(t + camera_latency_us_, to_sdk(frame_));
+  if (!faults_.empty()) apply_camera_faults(t);
 
   // the stereo cone detector on the pair; its cones reach SLAM after the latency
   std::optional<slam::frontend::StereoDetections> detections;
@@ -481,10 +510,10 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
       stats_.stereo_detect_ms_total +=
           std::chrono::duration<double, std::milli>(clock::now() - t0).count();
       if (!perception_->uses_lidar()) {
-        auto d = perception_->on_plugin_frame(
-            std::move(cones), car.truth().pose,
-            [&referee](int id) { return referee.is_knocked(id); }, &frame_);
-        if (d) cone_queue_.push_back({t + camera_latency_us_, std::move(*d)});
+        auto d =
+            perception_->on_plugin_frame(std::move(cones), car.truth().pose,
+                                         [&referee](int id) { return referee.is_knocked(id); });
+        if (d) enqueue(t + camera_latency_us_, std::move(*d), 1);
       }
     } catch (const PluginFailure& e) {
       if (failure_.empty()) failure_ = e.what();
@@ -497,7 +526,7 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
     detections->stamp = t;
     auto d = perception_->on_stereo(frame_, *detections, car.truth().pose,
                                     [&referee](int id) { return referee.is_knocked(id); });
-    if (d) cone_queue_.push_back({t + camera_latency_us_, std::move(*d)});
+    if (d) enqueue(t + camera_latency_us_, std::move(*d), 1);
   }
 
   // the dump: left and right PNG and a sidecar with the calibration and the true poses
@@ -566,7 +595,43 @@ void SensorRig::sense_cones(TimeUs t, const VehicleSim& car, const Referee& refe
                                   {"cones", cones}};
     write_text(run_dir_ / "images/detections" / frame_name(index, "json"), frame.dump(1) + "\n");
   }
-  cone_queue_.push_back({t + cone_latency_us_, {std::move(obs), std::move(labels), pose}});
+  enqueue(t + cone_latency_us_, {std::move(obs), std::move(labels), pose}, 2);
+}
+
+void SensorRig::enqueue(TimeUs due_us, DeliveredDetections frame, int source) {
+  if (!jitter_) {
+    cone_queue_.push_back({due_us, std::move(frame)});
+    return;
+  }
+  // late by the jitter; in delivery order (a frame that overtakes another goes before it)
+  const TimeUs previous = cone_queue_.empty() ? 0 : cone_queue_.back().first;
+  const TimeUs at =
+      faults_.delivery_us(frame.observations.stamp, due_us, previous, source, fault_counts_);
+  auto it = cone_queue_.end();
+  while (it != cone_queue_.begin() && std::prev(it)->first > at) --it;
+  cone_queue_.insert(it, {at, std::move(frame)});
+}
+
+void SensorRig::apply_camera_faults(TimeUs t) {
+  // a black frame; a frozen one repeats the last frame before the freeze (black before any)
+  if (faults_.camera_black(t, fault_counts_)) {
+    std::fill(frame_.left.rgb.begin(), frame_.left.rgb.end(), uint8_t{0});
+    std::fill(frame_.right.rgb.begin(), frame_.right.rgb.end(), uint8_t{0});
+    std::fill(frame_.left_depth_m.begin(), frame_.left_depth_m.end(), 0.0f);
+    return;
+  }
+  if (faults_.camera_frozen(t, fault_counts_)) {
+    if (last_good_frame_) {
+      frame_.left = last_good_frame_->left;
+      frame_.right = last_good_frame_->right;
+      frame_.left_depth_m = last_good_frame_->left_depth_m;
+    } else {
+      std::fill(frame_.left.rgb.begin(), frame_.left.rgb.end(), uint8_t{0});
+      std::fill(frame_.right.rgb.begin(), frame_.right.rgb.end(), uint8_t{0});
+    }
+    return;
+  }
+  if (freezes_) last_good_frame_ = frame_;
 }
 
 std::optional<DeliveredDetections> SensorRig::take_detections(TimeUs t) {

@@ -18,6 +18,7 @@
 #include "sensors/lidar.hpp"
 #include "sensors/pose_history.hpp"
 #include "sensors/stereo_camera.hpp"
+#include "sim/faults.hpp"
 #include "sim/perception_runner.hpp"
 #include "sim/referee.hpp"
 #include "sim/scenario.hpp"
@@ -39,6 +40,8 @@ struct DumpOptions {
 /// Counters for metrics.json.
 struct SensorRigStats {
   int lidar_scans = 0;
+  /// Sweeps a fault lost before perception (counted in lidar_scans too).
+  int lidar_sweeps_lost = 0;
   int64_t lidar_points = 0;
   int camera_frames = 0;
   int cone_frames = 0;
@@ -86,6 +89,9 @@ class SensorRig {
   bool camera_on() const { return camera_ != nullptr; }
   /// Counters; call finish() first so that the sweep in flight is counted.
   const SensorRigStats& stats() const { return stats_; }
+  /// What each of the scenario's faults did to the LiDAR, the camera and the delivery of the
+  /// frames (call finish() first).
+  const FaultCounts& fault_counts() const { return fault_counts_; }
 
   /// Why a perception plug-in cannot go on (it threw, returned NaN or overran its budget on a
   /// frame collected by now), naming it; empty while all is well.
@@ -106,6 +112,11 @@ class SensorRig {
   void render_camera(core::TimeUs t, const VehicleSim& car, const Referee& referee);
   void sense_cones(core::TimeUs t, const VehicleSim& car, const Referee& referee);
   void sync_knocked_cones(const Referee& referee);
+  // queues a frame for SLAM, due at `due_us`, late by the delay jitter's draw (source: 0 LiDAR,
+  // 1 camera, 2 cone sensor)
+  void enqueue(core::TimeUs due_us, DeliveredDetections frame, int source);
+  // the camera's faults on the frame just rendered
+  void apply_camera_faults(core::TimeUs t);
 
   const tracks::Track& track_;
   DumpOptions dump_;
@@ -150,6 +161,9 @@ class SensorRig {
     // the sweep's end and the autonomy's motion then (a plug-in called at collection)
     core::TimeUs end_us = 0;
     slam::frontend::SweepMotion motion;
+    // the faults: the sweep lost before perception, and what they did to it
+    bool lost = false;
+    FaultCounts fault_counts;
   };
   std::future<SweepResult> pending_scan_;
   std::vector<std::future<void>> pending_parts_;
@@ -163,6 +177,13 @@ class SensorRig {
   bool with_depth_ = false;
   core::StereoFrame frame_;
   core::StereoLabels frame_labels_;
+
+  // the scenario's faults, what they did, and the camera's last frame before a freeze
+  FaultInjector faults_;
+  FaultCounts fault_counts_;
+  bool jitter_ = false;
+  bool freezes_ = false;
+  std::optional<core::StereoFrame> last_good_frame_;
 
   size_t knocked_seen_ = 0;
   std::string failure_;

@@ -177,7 +177,7 @@ struct SlamRunner::Lane {
 
 SlamRunner::SlamRunner(const Scenario& s, const tracks::Track& track, const VehicleSim& car)
     : track_(track),
-      feed_(s.seed, s.sensors.imu, s.sensors.wheel_encoders),
+      feed_(s.seed, s.sensors.imu, s.sensors.wheel_encoders, s.faults),
       odometry_(odometry_config(s)) {
   if (s.slam == "none") throw std::invalid_argument("slam: no driving back-end");
   start_pose_ = car.truth().pose;
@@ -296,7 +296,18 @@ void SlamRunner::post(const DeliveredDetections& frame, const slam::SlamInput& i
   }
 }
 
+bool SlamRunner::out_of_order(const DeliveredDetections& frame) {
+  // a frame stamped before the newest one processed: the odometry has moved past its stamp
+  if (frame.observations.stamp < last_frame_stamp_) {
+    ++frames_out_of_order_;
+    return true;
+  }
+  last_frame_stamp_ = frame.observations.stamp;
+  return false;
+}
+
 void SlamRunner::process(const DeliveredDetections& frame, TimeUs now) {
+  if (out_of_order(frame)) return;
   post(frame, next_input(frame), now, false);
 }
 
@@ -305,6 +316,7 @@ bool SlamRunner::input_final(const DeliveredDetections& frame, TimeUs now) const
 }
 
 void SlamRunner::process_ahead(const DeliveredDetections& frame, TimeUs tick) {
+  if (out_of_order(frame)) return;
   post(frame, next_input(frame), tick, true);
 }
 

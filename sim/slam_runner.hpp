@@ -105,6 +105,12 @@ class SlamRunner {
   /// now), naming it; empty while all is well. The run ends with this as its DNF reason.
   const std::string& failure() const { return failure_; }
 
+  /// What the faults did to the vehicle sensors (IMU bias steps, wheel slip).
+  const FaultCounts& fault_counts() const { return feed_.fault_counts(); }
+  /// Frames delivered after a frame stamped later (out-of-order delivery): dropped, as the
+  /// odometry cannot go back to their stamp.
+  int frames_out_of_order() const { return frames_out_of_order_; }
+
   /// The driving lane's scorer (tests).
   const SlamScorer& scorer() const;
 
@@ -142,6 +148,11 @@ class SlamRunner {
   core::ConeObservations last_observations_;
   core::Pose2 last_frame_pose_;
   std::string failure_;
+  // the newest frame stamp processed, and the frames dropped for coming after a newer one
+  core::TimeUs last_frame_stamp_ = -1;
+  int frames_out_of_order_ = 0;
+  // whether a frame comes after a newer one (then it is counted and dropped)
+  bool out_of_order(const DeliveredDetections& frame);
   // the last tick catch_up() ran at: an update processed ahead for a later tick never took
   // effect
   core::TimeUs last_tick_us_ = -1;

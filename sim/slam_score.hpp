@@ -99,6 +99,8 @@ class SlamScorer {
   const std::vector<core::Pose2>& estimated_path() const { return estimated_path_; }
   const std::vector<core::TimeUs>& stamps() const { return stamps_; }
   const std::vector<double>& true_odometer() const { return true_odometer_; }
+  /// Each scored update's CPU time, ms, index by index with stamps().
+  const std::vector<double>& update_cpu_ms() const { return update_cpu_ms_; }
   /// Where (true map frame) each wrong association's observation was.
   const std::vector<core::Vec2>& wrong_association_places() const {
     return wrong_association_places_;

@@ -14,10 +14,13 @@ constexpr uint64_t kSteeringStream = 203;
 }  // namespace
 
 VehicleSensorFeed::VehicleSensorFeed(uint64_t seed, const sensors::ImuConfig& imu,
-                                     const sensors::WheelEncoderConfig& wheels)
+                                     const sensors::WheelEncoderConfig& wheels,
+                                     const std::vector<Fault>& faults)
     : imu_(imu, core::derive_seed(seed, kImuStream)),
       wheels_(wheels, core::derive_seed(seed, kWheelStream)),
-      steering_(sensors::SteeringSensorConfig{}, core::derive_seed(seed, kSteeringStream)) {}
+      steering_(sensors::SteeringSensorConfig{}, core::derive_seed(seed, kSteeringStream)),
+      faults_(faults, seed),
+      fault_counts_(faults_.zero_counts()) {}
 
 bool VehicleSensorFeed::imu_due(core::TimeUs t) const {
   return t % imu_.config().timing.period_us() == 0;
@@ -45,10 +48,12 @@ void VehicleSensorFeed::step(core::TimeUs t, const VehicleSim& car) {
     st.steer_rad = truth.steer_rad;
     if (imu_due) {
       Sample v{t, 0, imu_.sample(st), {}, {}};
+      if (!faults_.empty()) faults_.apply_imu(v.imu, fault_counts_);
       in_flight_.push_back({t + imu_.config().timing.latency_us(), v});
     }
     if (wheels_due) {
       Sample v{t, 1, {}, wheels_.sample(st), {}};
+      if (!faults_.empty()) faults_.apply_wheels(v.wheels, fault_counts_);
       in_flight_.push_back({t + wheels_.config().timing.latency_us(), v});
     }
     if (steer_due) {

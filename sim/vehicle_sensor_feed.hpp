@@ -8,6 +8,7 @@
 
 #include "core/time.hpp"
 #include "sensors/vehicle_sensors.hpp"
+#include "sim/faults.hpp"
 #include "sim/sensor_tap.hpp"
 #include "sim/vehicle_sim.hpp"
 #include "slam/odometry.hpp"
@@ -17,9 +18,14 @@ namespace conesim::sim {
 class VehicleSensorFeed {
  public:
   /// The sensors with noise streams derived from the scenario seed, the IMU and the wheel
-  /// encoders with the given noise.
+  /// encoders with the given noise, and the scenario's faults (IMU bias steps, wheel slip act
+  /// here).
   explicit VehicleSensorFeed(uint64_t seed, const sensors::ImuConfig& imu = {},
-                             const sensors::WheelEncoderConfig& wheels = {});
+                             const sensors::WheelEncoderConfig& wheels = {},
+                             const std::vector<Fault>& faults = {});
+
+  /// What each fault did here (samples changed), index by index with the scenario's faults.
+  const FaultCounts& fault_counts() const { return fault_counts_; }
 
   /// Samples the sensors due at t and delivers what has arrived by t.
   void step(core::TimeUs t, const VehicleSim& car);
@@ -54,6 +60,8 @@ class VehicleSensorFeed {
   sensors::Imu imu_;
   sensors::WheelEncoders wheels_;
   sensors::SteeringSensor steering_;
+  FaultInjector faults_;
+  FaultCounts fault_counts_;
   // samples taken but not yet arrived: (arrival time, sample)
   std::deque<std::pair<core::TimeUs, Sample>> in_flight_;
   // samples arrived but not yet fed, in stamp order

@@ -551,6 +551,17 @@ void add_bench_commands(CLI::App& app) {
   tracks_cmd->callback([=] {
     std::cout << conesim::sim::bench_tracks(*counts, *track_repeats, *keep).dump(2) << "\n";
   });
+  // `conesim bench soak`: many laps in one process, memory and SLAM update time lap by lap
+  auto* soak = bench->add_subcommand(
+      "soak",
+      "A long trackdrive (default: trackdrive-lidar, 100 laps): RSS and SLAM update p99 "
+      "lap by lap, lap 10 against the last, the first ten laps against the last ten");
+  auto options = std::make_shared<conesim::sim::SoakOptions>();
+  soak->add_option("--scenario", options->scenario, "A shipped scenario or file");
+  soak->add_option("--laps", options->laps, "Laps to drive")->check(CLI::Range(20, 1000));
+  soak->add_option("--seed", options->seed, "The scenario seed");
+  soak->add_option("--set", options->sets, "key.path=value, as for conesim run");
+  soak->callback([=] { std::cout << conesim::sim::bench_soak(*options).dump(2) << "\n"; });
 }
 
 }  // namespace
