@@ -498,6 +498,8 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
   stats_.camera_ms_total += std::chrono::duration<double, std::milli>(clock::now() - start).count();
   const int index = stats_.camera_frames++;
   if (!faults_.empty()) apply_camera_faults(t);
+  // the tap gets the pair as the perception does (after the camera's faults)
+  if (tap_ && tap_->kinds().camera) tap_->on_stereo(t + camera_latency_us_, to_sdk(frame_));
 
   // the stereo cone detector on the pair; its cones reach SLAM after the latency
   std::optional<slam::frontend::StereoDetections> detections;
@@ -510,9 +512,9 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
       stats_.stereo_detect_ms_total +=
           std::chrono::duration<double, std::milli>(clock::now() - t0).count();
       if (!perception_->uses_lidar()) {
-        auto d =
-            perception_->on_plugin_frame(std::move(cones), car.truth().pose,
-                                         [&referee](int id) { return referee.is_knocked(id); });
+        auto d = perception_->on_plugin_frame(
+            std::move(cones), car.truth().pose,
+            [&referee](int id) { return referee.is_knocked(id); }, &frame_);
         if (d) enqueue(t + camera_latency_us_, std::move(*d), 1);
       }
     } catch (const PluginFailure& e) {
