@@ -140,6 +140,8 @@ std::string FastSlamConfig::validate() const {
   if (!(fov_margin_m >= 0.0)) return "fov_margin_m: expected >= 0 m";
   if (!(drift_variance_m2_per_m >= 0.0)) return "drift_variance_m2_per_m: expected >= 0";
   if (!(max_drift_variance_m2 >= 0.0)) return "max_drift_variance_m2: expected >= 0";
+  if (!(return_gap_m > 0.0)) return "return_gap_m: expected > 0 m";
+  if (!(hold_drift_m >= 0.0)) return "hold_drift_m: expected >= 0 m";
   if (!(closure_max_spread_m > 0.0)) return "closure_max_spread_m: expected > 0 m";
   if (!(association.gate_chi2 > 0.0)) return "gate_chi2: expected > 0";
   if (!(association.joint_probability > 0.5 && association.joint_probability < 1.0))
@@ -306,9 +308,12 @@ double FastSlam::update_particle(Particle& particle, const SlamInput& input,
     ParticleProblem::Candidate c;
     c.id = id;
     c.landmark = lm;
-    if (!localising)
+    if (!localising) {
       c.drift_m2 = std::min(config_.max_drift_variance_m2,
                             config_.drift_variance_m2_per_m * (travel_m_ - lm->last_seen_travel_m));
+      if (travel_m_ <= lm->held_until_travel_m)
+        c.drift_m2 = std::max(c.drift_m2, lm->held_drift_m2);
+    }
     candidates.push_back(c);
   }
   const ParticleProblem problem(pose, pose_cov, obs, std::move(candidates),
@@ -381,6 +386,10 @@ double FastSlam::update_particle(Particle& particle, const SlamInput& input,
     lm.covariance = 0.5 * (cov + cov.transpose());
     if (o.cls != core::ConeClass::kUnknown) ++lm.class_votes[static_cast<int>(o.cls)];
     if (o.track_id >= 0) lm.track_id = o.track_id;
+    if (travel_m_ - lm.last_seen_travel_m >= config_.return_gap_m) {
+      lm.held_drift_m2 = problem.candidate(j).drift_m2;
+      lm.held_until_travel_m = travel_m_ + config_.hold_drift_m;
+    }
     lm.last_seen_travel_m = travel_m_;
     ++lm.sightings;
     if (!lm.confirmed && lm.sightings >= config_.confirm_sightings) lm.confirmed = true;

@@ -61,6 +61,12 @@ struct FastSlamConfig {
   /// the old landmarks when it comes back round and FastSLAM 2.0's proposal pull it onto them).
   double drift_variance_m2_per_m = 0.002;
   double max_drift_variance_m2 = 1.0;
+  /// A landmark seen again after at least this much driving out of sight, m, keeps the drift
+  /// allowance it returned with for another hold_drift_m driven: the pose that drifted away
+  /// from it is still off by that much on the next frames, and without the allowance the next
+  /// sighting would fail the gate and start a duplicate.
+  double return_gap_m = 30.0;
+  double hold_drift_m = 30.0;
   /// A landmark's class is trusted in the association once its votes lead by this many.
   int class_vote_margin = 2;
   /// The odometry's covariance is scaled by this, and this is added to its heading variance
@@ -102,6 +108,9 @@ struct FastLandmark {
   double first_travel_m = 0.0;
   double first_heading_rad = 0.0;
   double last_seen_travel_m = 0.0;
+  /// The drift allowance held after a return (m^2), until this much has been driven (m).
+  double held_drift_m2 = 0.0;
+  double held_until_travel_m = -1.0;
   LoopState loop_state = LoopState::kInView;
 };
 
@@ -115,9 +124,7 @@ class FastSlam : public Backend {
   core::Estimate estimate() const override;
   const std::vector<Association>& last_associations() const override;
   int loop_closures() const override { return loop_closures_; }
-  std::string name() const override {
-    return config_.version == 1 ? "fastslam1" : "fastslam2";
-  }
+  std::string name() const override { return config_.version == 1 ? "fastslam1" : "fastslam2"; }
   double last_association_us() const override { return association_us_; }
   std::string estimate_source() const override {
     return phase_ == core::SlamPhase::kLocalisation ? "particles' weighted mean pose on the "

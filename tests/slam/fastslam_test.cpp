@@ -107,8 +107,8 @@ TEST(FastSlamWeights, ALandmarkInViewButUnseenLowersTheWeight) {
     FastSlam a(constructed_config(version)), b(constructed_config(version));
     a.reset({}, 0);
     b.reset({}, 0);
-    a.process(frame(100'000, {cone(8, 2, core::ConeClass::kBlue),
-                              cone(8, -2, core::ConeClass::kYellow)}));
+    a.process(frame(100'000,
+                    {cone(8, 2, core::ConeClass::kBlue), cone(8, -2, core::ConeClass::kYellow)}));
     b.process(frame(100'000, {cone(8, 2, core::ConeClass::kBlue)}));
     ASSERT_TRUE(a.in_field_of_view({}, {8, -2}));
     ASSERT_EQ(a.particles()[0].map.size(), 2);
@@ -154,6 +154,33 @@ TEST(FastSlamWeights, ACloserMatchWeighsMore) {
   EXPECT_GT(slam.last_log_factors()[0], off.last_log_factors()[0]);
   EXPECT_LT(near, 0.0);  // a new landmark: the new-landmark factor alone
   EXPECT_NEAR(near, std::log(0.02), 1e-12);
+}
+
+TEST(FastSlam, AReturnKeepsItsDriftAllowanceUntilThePoseHasCaughtUp) {
+  // A cone is mapped, the car drives 200 m out of its sight and comes back 0.5 m off (the
+  // odometry's drift). The first sighting pairs inside the drift allowance; the pose, held by
+  // its tight odometry, is still 0.5 m off on the next frame, so that sighting pairs only while
+  // the allowance is held (otherwise it fails the gate and is rejected or starts a duplicate).
+  for (const bool hold : {true, false}) {
+    FastSlamConfig config = constructed_config(2);
+    if (!hold) config.return_gap_m = 1e9;
+    FastSlam slam(config);
+    slam.reset({}, 0);
+    core::TimeUs t = 100'000;
+    slam.process(frame(t, {cone(8, 2, core::ConeClass::kBlue)}));
+    auto move = [&](double dx, std::vector<core::ConeObservation> cones) {
+      SlamInput in = frame(t += 100'000, std::move(cones));
+      in.odometry.delta = {dx, 0.0, 0.0};
+      in.odometry.distance_m = std::abs(dx);
+      slam.process(in);
+    };
+    for (int k = 0; k < 10; ++k) move(10.0, {});  // away: the cone behind, out of view
+    move(-100.0, {cone(8.5, 2, core::ConeClass::kBlue)});
+    ASSERT_EQ(slam.last_associations()[0].kind, Association::Kind::kMatched) << hold;
+    move(0.0, {cone(8.5, 2, core::ConeClass::kBlue)});
+    EXPECT_EQ(slam.last_associations()[0].kind == Association::Kind::kMatched, hold) << hold;
+    EXPECT_EQ(slam.particles()[0].map.size(), 1) << hold;
+  }
 }
 
 TEST(FastSlamResampling, LowVarianceKeepsTheExpectedCountsWithMinimalSpread) {
