@@ -6,6 +6,9 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "sdk/builtin/lidar_frontend.hpp"
+#include "sensors/lidar_config.hpp"
+
 namespace conesim::sim {
 
 namespace {
@@ -110,24 +113,19 @@ PerceptionRunner::PerceptionRunner(const Scenario& s, const tracks::Track& track
   uses_lidar_ = lidar;
   uses_camera_ = camera;
   if (lidar) {
-    // the detector knows the beam pattern of the LiDAR model (not the scene)
-    const sensors::LidarConfig lidar = *sensors::lidar_preset(s.sensors.lidar_model);
-    slam::frontend::LidarDetectorConfig config;
-    config.sweep_period_s = 1.0 / lidar.rate_hz;
-    config.ring_elevations_deg = lidar.elevations_deg;
-    std::sort(config.ring_elevations_deg.begin(), config.ring_elevations_deg.end());
-    config.azimuth_step_deg = 360.0 / lidar.columns;
-    config.range_noise_sigma_m = lidar.range_noise_sigma_m;
-    lidar_detector_ = std::make_unique<slam::frontend::LidarConeDetector>(config, lidar_mount);
+    lidar_detector_ = std::make_unique<slam::frontend::LidarConeDetector>(
+        sdk_bridge::lidar_detector_config(*sensors::lidar_preset(s.sensors.lidar_model)),
+        lidar_mount);
     lidar_score_ = std::make_unique<PerceptionScorer>(lidar_xy_, kScoreBandM, kScoreRangeM);
     lidar_returned_score_ =
         std::make_unique<PerceptionScorer>(lidar_xy_, kScoreBandM, kScoreRangeM);
   }
   if (camera) {
-    stereo_detector_ =
-        std::make_unique<slam::frontend::StereoConeDetector>(slam::frontend::StereoDetectorConfig{});
+    stereo_detector_ = std::make_unique<slam::frontend::StereoConeDetector>(
+        slam::frontend::StereoDetectorConfig{});
   }
-  if (lidar) delivered_score_ = std::make_unique<PerceptionScorer>(lidar_xy_, kScoreBandM, kScoreRangeM);
+  if (lidar)
+    delivered_score_ = std::make_unique<PerceptionScorer>(lidar_xy_, kScoreBandM, kScoreRangeM);
 }
 
 PerceptionRunner::~PerceptionRunner() {
@@ -150,15 +148,16 @@ std::vector<TrueConeInView> PerceptionRunner::truth_in_view(
   return out;
 }
 
-core::ConeObservations PerceptionRunner::track(const core::ConeObservations& frame) {
-  const double dt =
-      tracker_stamp_ ? core::to_seconds(frame.stamp - *tracker_stamp_) : 0.0;
+core::ConeObservations PerceptionRunner::track(const core::ConeObservations& frame,
+                                               const slam::frontend::SweepMotion& motion) {
+  const double dt = tracker_stamp_ ? core::to_seconds(frame.stamp - *tracker_stamp_) : 0.0;
   tracker_stamp_ = frame.stamp;
-  return tracker_.update(frame, motion_over(motion_, dt));
+  return tracker_.update(frame, motion_over(motion, dt));
 }
 
 DeliveredDetections PerceptionRunner::on_lidar(const sensors::LidarScan& scan,
                                                const slam::frontend::LidarDetections& detections,
+                                               const slam::frontend::SweepMotion& motion,
                                                const core::Pose2& true_pose,
                                                const std::function<bool(int)>& is_knocked) {
   // the LiDAR alone, scored against the true cones all round
@@ -182,15 +181,15 @@ DeliveredDetections PerceptionRunner::on_lidar(const sensors::LidarScan& scan,
     if (latest_stereo_)
       camera_in_lidar =
           motion_over(motion_, core::to_seconds(latest_stereo_->stamp - detections.stamp));
-    frame = slam::frontend::fuse(fusion_, detections, latest_stereo_, intrinsics_,
-                                 left_in_vehicle_, camera_in_lidar);
+    frame = slam::frontend::fuse(fusion_, detections, latest_stereo_, intrinsics_, left_in_vehicle_,
+                                 camera_in_lidar);
     frame.stamp = detections.stamp;
   } else {
     for (const auto& cone : detections.cones) labels.push_back(cluster_label(cone, scan.labels));
   }
 
   // tracked ids and colour votes, then the score of what SLAM receives
-  frame = track(frame);
+  frame = track(frame, motion);
   const std::vector<int> matched = delivered_score_->add_frame(frame, truth);
   DeliveredDetections out;
   out.observations = std::move(frame);
@@ -224,8 +223,10 @@ std::optional<DeliveredDetections> PerceptionRunner::on_stereo(
       const double half_width = std::atan2(0.5 * core::cone_size(c.cls).base_m, v.norm());
       whole = whole && v.x() > 0.0 && std::abs(std::atan2(v.y(), v.x())) + half_width <= half_fov;
     }
-    if (whole) truth.push_back(c);
-    else partial.push_back(c.position);
+    if (whole)
+      truth.push_back(c);
+    else
+      partial.push_back(c.position);
   }
   // a cone cut by an image border is neither to be found nor a false detection (as KITTI's
   // DontCare regions): detections within 1 m of one are left out of the camera's own score
@@ -241,7 +242,7 @@ std::optional<DeliveredDetections> PerceptionRunner::on_stereo(
   }
 
   // stereo alone drives SLAM
-  core::ConeObservations tracked = track(detections.observations());
+  core::ConeObservations tracked = track(detections.observations(), motion_);
   tracked.stamp = detections.stamp;
   DeliveredDetections out;
   // (what SLAM receives is labelled against every cone in the left image)

@@ -90,10 +90,13 @@ class PerceptionRunner {
   void set_motion(const slam::frontend::SweepMotion& motion) { motion_ = motion; }
   const slam::frontend::SweepMotion& motion() const { return motion_; }
 
-  /// One sweep's detections: scored, fused with the latest stereo result (`fused`), tracked.
-  /// true_pose: the vehicle pose at the detections' stamp. Returns the frame for SLAM.
+  /// One sweep's detections: scored, fused with the latest stereo result (`fused`), tracked
+  /// with the motion the detector de-skewed with (the autonomy's at the sweep's end, as a
+  /// perception plug-in gets it). true_pose: the vehicle pose at the detections' stamp.
+  /// Returns the frame for SLAM.
   DeliveredDetections on_lidar(const sensors::LidarScan& scan,
                                const slam::frontend::LidarDetections& detections,
+                               const slam::frontend::SweepMotion& motion,
                                const core::Pose2& true_pose,
                                const std::function<bool(int)>& is_knocked);
 
@@ -123,7 +126,8 @@ class PerceptionRunner {
                                             const core::Pose2& true_pose,
                                             const std::function<bool(int)>& is_knocked) const;
   // the tracker's step, with the motion since its previous frame
-  core::ConeObservations track(const core::ConeObservations& frame);
+  core::ConeObservations track(const core::ConeObservations& frame,
+                               const slam::frontend::SweepMotion& motion);
 
   const tracks::Track& track_;
   std::string mode_;

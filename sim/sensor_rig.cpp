@@ -331,7 +331,7 @@ void SensorRig::end_sweep() {
         }
         if (detector) {
           const auto t0 = clock::now();
-          r.detections = detector->detect(r.scan.cloud, motion);
+          r.detections = detector->detect(r.scan.cloud, motion, end);
           r.detect_ms = ms_between(t0, clock::now());
         }
         if (plugin) {
@@ -413,7 +413,7 @@ void SensorRig::collect_sweep() {
     stats_.lidar_detect_ms_total += result.detect_ms;
     const Referee& referee = *referee_;
     DeliveredDetections d = perception_->on_lidar(
-        scan, *result.detections, poses_.at(result.detections->stamp).planar(),
+        scan, *result.detections, result.motion, poses_.at(result.detections->stamp).planar(),
         [&referee](int id) { return referee.is_knocked(id); });
     enqueue(pending_delivery_us_, std::move(d), 0);
   }

@@ -163,6 +163,16 @@ inline sdk::Span<sdk::LidarPoint> to_sdk(const core::PointCloud& cloud,
   return {buffer.data(), buffer.size()};
 }
 
+/// A LiDAR sweep's points back into the simulator's type (copied; floats stay floats).
+inline core::PointCloud from_sdk(const sdk::LidarSweep& sweep) {
+  core::PointCloud out;
+  out.stamp = sweep.stamp_us;
+  out.points.reserve(sweep.points.size);
+  for (const sdk::LidarPoint& p : sweep.points)
+    out.points.push_back({p.x_m, p.y_m, p.z_m, p.intensity, p.ring, p.time_offset_s});
+  return out;
+}
+
 /// A stereo pair as the SDK's view: the images point into `frame`.
 inline sdk::StereoFrame to_sdk(const core::StereoFrame& f) {
   sdk::StereoFrame out;

@@ -137,8 +137,9 @@ class SweepColumns {
   // threshold for handing memory back to the kernel
   static constexpr int kTypicalColumns = 2048;
 
-  SweepColumns(const SweepMotion& motion, double sweep_period_s, int points)
-      : motion_(motion), sweep_period_s_(sweep_period_s) {
+  // frame_s: the frame's time after the sweep's start, to which the points are moved
+  SweepColumns(const SweepMotion& motion, double frame_s, int points)
+      : motion_(motion), frame_s_(frame_s) {
     columns_.reserve(static_cast<size_t>(std::min(points, kTypicalColumns)));
   }
 
@@ -146,7 +147,7 @@ class SweepColumns {
   void add(int i, float tau_s) {
     ColumnMotion m;
     m.first_index = i;
-    m.back = arc_motion(motion_, sweep_period_s_ - tau_s);
+    m.back = arc_motion(motion_, frame_s_ - tau_s);
     m.cos_yaw = std::cos(m.back.yaw);
     m.sin_yaw = std::sin(m.back.yaw);
     columns_.push_back(m);
@@ -165,7 +166,7 @@ class SweepColumns {
 
  private:
   SweepMotion motion_;
-  double sweep_period_s_;
+  double frame_s_;
   std::vector<ColumnMotion> columns_;
 };
 
@@ -732,9 +733,16 @@ LidarConeDetector::LidarConeDetector(const LidarDetectorConfig& config,
 
 LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
                                           const SweepMotion& motion) const {
+  return detect(cloud, motion, cloud.stamp + core::from_seconds(config_.sweep_period_s));
+}
+
+LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud, const SweepMotion& motion,
+                                          core::TimeUs frame_stamp) const {
   const LidarDetectorConfig& c = config_;
   LidarDetections out;
-  out.stamp = cloud.stamp + core::from_seconds(c.sweep_period_s);
+  out.stamp = frame_stamp;
+  // the frame's time after the sweep's start: the points are moved to the vehicle frame then
+  const double frame_s = std::max(0.0, core::to_seconds(frame_stamp - cloud.stamp));
   const int n = static_cast<int>(cloud.points.size());
 
   // de-skew: a point fired at tau is in the vehicle frame of tau; the vehicle at the sweep end
@@ -750,11 +758,11 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
   // bound of the terms' magnitudes, for the margins of the sensor-frame tests; the rotation
   // matrix and the quaternion agree only for a unit quaternion (else every point is moved)
   const double magnitude_m = t.cwiseAbs().sum() + 2.0 * c.max_range_m + SensorFrameTest::kMaxZM +
-                             std::abs(motion.speed_mps) * c.sweep_period_s + 1.0;
+                             std::abs(motion.speed_mps) * frame_s + 1.0;
   const double relative_margin = std::abs(mount.orientation.squaredNorm() - 1.0) < 1e-12
                                      ? 1e-9
                                      : std::numeric_limits<double>::infinity();
-  SweepColumns columns(motion, c.sweep_period_s, n);
+  SweepColumns columns(motion, frame_s, n);
   auto column_motion = [&columns, &c](int column) -> const ColumnMotion* {
     return c.deskew ? &columns[column] : nullptr;
   };
@@ -942,7 +950,7 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud,
     for (const int i : cluster) mean_tau += cloud.points[raised[i].index].time_offset_s;
     mean_tau /= static_cast<double>(cluster.size());
     // de-skew error: a fraction of the motion since the cluster fired, or all of it when off
-    const double moved_m = std::abs(motion.speed_mps) * std::max(0.0, c.sweep_period_s - mean_tau);
+    const double moved_m = std::abs(motion.speed_mps) * std::max(0.0, frame_s - mean_tau);
     const double deskew_sigma_m = c.deskew ? c.speed_relative_sigma * moved_m : moved_m;
     cone.observation.covariance = covariance_of(c, base.head<2>(), sensor_xy,
                                                 static_cast<int>(cluster.size()), deskew_sigma_m);

@@ -154,7 +154,12 @@ class LidarConeDetector {
   /// Throws std::invalid_argument when config.validate() fails.
   LidarConeDetector(const LidarDetectorConfig& config, const core::Pose3& sensor_in_vehicle);
 
-  /// Finds the cones of one sweep (points in the sensor frame, as sensors::Lidar gives them).
+  /// Finds the cones of one sweep (points in the sensor frame, as sensors::Lidar gives them),
+  /// in the vehicle frame at frame_stamp (at or after the sweep's start): the run and the SDK
+  /// refer a sweep's cones to its last column, `LidarSweep::end_us`.
+  LidarDetections detect(const core::PointCloud& cloud, const SweepMotion& motion,
+                         core::TimeUs frame_stamp) const;
+  /// The same in the vehicle frame one sweep period after the sweep's start.
   LidarDetections detect(const core::PointCloud& cloud, const SweepMotion& motion) const;
 
   const LidarDetectorConfig& config() const { return config_; }

@@ -3,10 +3,10 @@
 # plug-ins out of tree with find_package(conesim), run them in the loop; plug-ins that are not
 # plug-ins, built against another ABI or refusing their configuration are refused (exit 2, the
 # file named, nothing written); one that throws, returns NaN or overruns its time budget ends
-# the run with a DNF naming it; the reference driver, GraphSLAM and the stereo front-end
-# loaded as plug-ins give the built-in runs' metrics.
+# the run with a DNF naming it; the reference driver, GraphSLAM and the stereo and LiDAR
+# front-ends loaded as plug-ins give the built-in runs' metrics.
 # usage: sdk_test.sh CONESIM_BINARY BUILD_DIR SOURCE_DIR TEST_PLUGIN_DIR REFERENCE_DRIVER_SO
-#        GRAPH_SLAM_SO STEREO_PERCEPTION_SO
+#        GRAPH_SLAM_SO STEREO_PERCEPTION_SO LIDAR_PERCEPTION_SO
 set -uo pipefail
 bin="$(realpath "$1")"
 build="$(realpath "$2")"
@@ -15,6 +15,7 @@ plugins="$(realpath "$4")"
 reference="$(realpath "$5")"
 graph="$(realpath "$6")"
 stereo="$(realpath "$7")"
+lidar="$(realpath "$8")"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 . "$(dirname "$0")/check_lib.sh"
@@ -199,5 +200,26 @@ expect_json stereo_plugin_mode "$work/stereo_plugin/metrics.json" "m['perception
 compare_runs "$work/stereo_builtin/metrics.json" "$work/stereo_plugin/metrics.json" \
   >"$work/stereo_diff"
 expect_text stereo_identical "$work/stereo_diff" "^identical$"
+
+# 10: the LiDAR front-end (detector and tracker) loaded as a perception plug-in given the LiDAR
+#     gives the built-in LiDAR run (two laps: mapping and localisation on GraphSLAM)
+"$bin" run trackdrive-lidar --no-plot --out "$work/lidar_builtin" \
+  --set driver.trackdrive_laps=2 >/dev/null 2>&1
+check lidar_as_plugin $? "$bin" run trackdrive-lidar --no-plot --out "$work/lidar_plugin" \
+  --set driver.trackdrive_laps=2 \
+  --set "autonomy.perception={plugin: $lidar, sensors: [lidar], config: {model: vlp32c}}"
+expect_json lidar_plugin_mode "$work/lidar_plugin/metrics.json" "m['perception']['mode']" plugin
+compare_runs "$work/lidar_builtin/metrics.json" "$work/lidar_plugin/metrics.json" \
+  >"$work/lidar_diff"
+expect_text lidar_identical "$work/lidar_diff" "^identical$"
+# a model the plug-in does not know is refused before the run, naming the key
+check lidar_plugin_bad_model 2 "$bin" run trackdrive-lidar --no-plot --out "$work/lidar_bad" \
+  --set "autonomy.perception={plugin: $lidar, sensors: [lidar], config: {model: vlp17}}"
+expect_text lidar_plugin_bad_model_named "$work/err" "model: unknown LiDAR model 'vlp17'"
+# a model with fewer rings than the scenario's LiDAR ends the run with a DNF naming the plug-in
+check lidar_plugin_wrong_model 1 "$bin" run trackdrive-lidar --no-plot --out "$work/lidar_wrong" \
+  --set driver.trackdrive_laps=1 --set "autonomy.perception={plugin: $lidar, sensors: [lidar]}"
+expect_json lidar_plugin_wrong_model_dnf "$work/lidar_wrong/metrics.json" \
+  "'lidar' in m['dnf_reason'] and 'model vlp16 has 16 rings' in m['dnf_reason']" True
 
 report
