@@ -16,9 +16,9 @@
 
 #include "core/time.hpp"
 #include "sdk/builtin/bridge.hpp"
+#include "sdk/builtin/frame_tracker.hpp"
 #include "sdk/builtin/lidar_frontend.hpp"
 #include "sensors/lidar_config.hpp"
-#include "slam/frontend/cone_tracker.hpp"
 #include "slam/frontend/lidar_cone_detector.hpp"
 
 namespace {
@@ -40,9 +40,7 @@ slam::frontend::LidarDetectorConfig detector_config(const std::string& model) {
 class LidarPerceptionPlugin final : public sdk::Perception {
  public:
   LidarPerceptionPlugin(const sdk::RunInfo&, const sdk::Config& config)
-      : model_(config.text("model", "vlp16")),
-        config_(detector_config(model_)),
-        tracker_(slam::frontend::TrackerConfig{}) {
+      : model_(config.text("model", "vlp16")), config_(detector_config(model_)) {
     static const char* const kKnown[] = {"model", nullptr};
     config.require_known(kKnown);
   }
@@ -65,22 +63,14 @@ class LidarPerceptionPlugin final : public sdk::Perception {
     const slam::frontend::LidarDetections detections =
         detector_->detect(sdk_bridge::from_sdk(sweep), sweep_motion, sweep.end_us);
     // tracked ids and colour votes, predicted with the motion since the previous sweep
-    const double dt_s = end_us_ ? core::to_seconds(sweep.end_us - *end_us_) : 0.0;
-    end_us_ = sweep.end_us;
-    core::ConeObservations tracked =
-        tracker_.update(detections.observations(),
-                        slam::frontend::motion_over(motion.speed_mps, motion.yaw_rate_rps, dt_s));
-    tracked.stamp = sweep.end_us;
-    return sdk_bridge::to_sdk(tracked, cones_);
+    return tracker_.update(detections.observations(), sweep.end_us, motion);
   }
 
  private:
   std::string model_;
   slam::frontend::LidarDetectorConfig config_;
   std::unique_ptr<slam::frontend::LidarConeDetector> detector_;
-  slam::frontend::ConeTracker tracker_;
-  std::optional<sdk::TimeUs> end_us_;
-  std::vector<sdk::ConeObservation> cones_;
+  sdk_bridge::FrameTracker tracker_;
 };
 
 }  // namespace

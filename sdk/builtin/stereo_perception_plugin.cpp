@@ -12,7 +12,7 @@
 
 #include "core/time.hpp"
 #include "sdk/builtin/bridge.hpp"
-#include "slam/frontend/cone_tracker.hpp"
+#include "sdk/builtin/frame_tracker.hpp"
 #include "slam/frontend/stereo_cone_detector.hpp"
 
 namespace {
@@ -22,8 +22,7 @@ using namespace conesim;
 class StereoPerceptionPlugin final : public sdk::Perception {
  public:
   StereoPerceptionPlugin(const sdk::RunInfo&, const sdk::Config& config)
-      : detector_(slam::frontend::StereoDetectorConfig{}),
-        tracker_(slam::frontend::TrackerConfig{}) {
+      : detector_(slam::frontend::StereoDetectorConfig{}) {
     static const char* const kKnown[] = {nullptr};
     config.require_known(kKnown);
   }
@@ -36,20 +35,12 @@ class StereoPerceptionPlugin final : public sdk::Perception {
     slam::frontend::StereoDetections detections = detector_.detect(sdk_bridge::from_sdk(pair));
     detections.stamp = pair.stamp_us;
     // tracked ids and colour votes, predicted with the motion since the previous pair
-    const double dt_s = stamp_us_ ? core::to_seconds(pair.stamp_us - *stamp_us_) : 0.0;
-    stamp_us_ = pair.stamp_us;
-    core::ConeObservations tracked =
-        tracker_.update(detections.observations(),
-                        slam::frontend::motion_over(motion.speed_mps, motion.yaw_rate_rps, dt_s));
-    tracked.stamp = pair.stamp_us;
-    return sdk_bridge::to_sdk(tracked, cones_);
+    return tracker_.update(detections.observations(), pair.stamp_us, motion);
   }
 
  private:
   slam::frontend::StereoConeDetector detector_;
-  slam::frontend::ConeTracker tracker_;
-  std::optional<sdk::TimeUs> stamp_us_;
-  std::vector<sdk::ConeObservation> cones_;
+  sdk_bridge::FrameTracker tracker_;
 };
 
 }  // namespace
