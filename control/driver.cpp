@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <optional>
 
@@ -92,6 +93,16 @@ constexpr double kManoeuvreMaxSpeedMps = 6.0;
 // the manoeuvre search looks this far ahead at least, metres, and over this time, s
 constexpr double kManoeuvreAheadM = 6.0;
 constexpr double kManoeuvreAheadS = 1.5;
+// a lane narrower than this (below the rules' 3 m by more than any shared competition layout,
+// 2.65 m at their narrowest) leaves the car too little room either side for its tracking error
+// at speed: on the fast laps the line within kNarrowLaneReachM of a cone that close to the other
+// boundary is driven at kNarrowLaneSpeedMps at most. Measured on EUFS small_track_2 (a 2.3 m gap
+// between a cone and the other boundary, into a near-full-lock bend): uncapped, the car entered
+// at 8.9 m/s, ran 0.33 m wide of the line and its front corner hit the gap's entry cone; capped at
+// 8, 7 or 6 m/s within 3 m it kept 0.02-0.05 m, within 5 m 0.05, 0.14 and 0.11 m (lap +0.1 s)
+constexpr double kNarrowLaneM = 2.5;
+constexpr double kNarrowLaneReachM = 5.0;
+constexpr double kNarrowLaneSpeedMps = 7.0;
 // the lap line is searched among the big orange cones while the car is this close to the
 // start (by distance travelled), metres
 constexpr double kLapLineSearchOdometerM = 40.0;
@@ -204,6 +215,8 @@ struct Driver::Impl {
   Path path;
   // the fast laps' line, and the odometer reading up to which the car is still joining it
   Path racing_line;
+  // its speed caps where the lane is narrow (empty: none)
+  std::vector<double> racing_line_caps;
   std::optional<double> join_until_m;
   // the odometer reading when lap 1 ended, while the car has yet to reach the racing line
   std::optional<double> join_pending_since_m;
@@ -605,7 +618,8 @@ struct Driver::Impl {
   // link may) the lap the car drove orders them into boundaries. Measured on generated
   // hard-profile trackdrives: the chains did not close on 56 of the first 71, whose fast laps then
   // drove the lap-1 trace at speed with no clearance check (6 of 100 hit a cone)
-  Path fast_line(const Path& centre, const std::vector<MapCone>& map, const Pose2& from) const {
+  Path fast_line(const Path& centre, const std::vector<MapCone>& map, const Pose2& from,
+                 Boundaries* sides) const {
     constexpr double kMaxCircuitM = 3000.0;
     Boundaries b = chain_boundaries(map, from, planner, kMaxCircuitM, true);
     if (!b.left_closed || !b.right_closed) b = boundaries_along(centre, map, planner);
@@ -618,7 +632,35 @@ struct Driver::Impl {
     const RacingLine line =
         plan_racing_line(centre.points, true, b.left, b.right, cones, footprint);
     if (line.path.points.size() < 20) return centre;
+    *sides = b;
     return Path{resample(line.path.points, 1.0, true), true};
+  }
+
+  // the speed caps along the racing line where its lane is narrower than kNarrowLaneM (a blue
+  // cone that close to the right boundary, a yellow one to the left): kNarrowLaneSpeedMps within
+  // kNarrowLaneReachM of the cone; empty when the line has no such place
+  std::vector<double> narrow_lane_caps(const Path& line, const Boundaries& sides,
+                                       const std::vector<MapCone>& map) const {
+    if (sides.left.size() < 2 || sides.right.size() < 2) return {};
+    std::vector<double> caps(line.points.size(), std::numeric_limits<double>::infinity());
+    bool any = false;
+    auto mark = [&](core::ConeClass cls, const std::vector<Vec2>& other) {
+      for (const MapCone& cone : map) {
+        if (cone.cls != cls) continue;
+        double w = std::numeric_limits<double>::infinity();
+        for (size_t j = 0; j < other.size(); ++j)
+          w = std::min(
+              w, core::distance_to_segment(cone.position, other[j], other[(j + 1) % other.size()]));
+        if (w >= kNarrowLaneM) continue;
+        for (size_t i = 0; i < caps.size(); ++i)
+          if ((line.points[i] - cone.position).norm() <= kNarrowLaneReachM)
+            caps[i] = kNarrowLaneSpeedMps, any = true;
+      }
+    };
+    mark(core::ConeClass::kBlue, sides.right);
+    mark(core::ConeClass::kYellow, sides.left);
+    if (!any) return {};
+    return caps;
   }
 
   // a lap is done: brake after the last one, or switch to the fast circuit after lap 1
@@ -641,7 +683,9 @@ struct Driver::Impl {
     }
     if (!circuit) return;  // keep exploring
     // the car goes on along its lap-1 path until it is near the racing line (see join_line)
-    racing_line = fast_line(*circuit, est.map, start);
+    Boundaries sides;
+    racing_line = fast_line(*circuit, est.map, start, &sides);
+    racing_line_caps = narrow_lane_caps(racing_line, sides, est.map);
     join_pending_since_m = status.odometer_m;
   }
 
@@ -662,7 +706,8 @@ struct Driver::Impl {
     join_until_m = status.odometer_m + join_m + kJoinPastM;
     // the speed profile is the line's (the join curves the path by a few thousandths of 1/m
     // ahead of the car, and more behind it, where the car will not be before the join ends)
-    profile = plan_speed(racing_line, limits(params.fast_speed_mps));
+    profile = plan_speed(racing_line, limits(params.fast_speed_mps), std::nullopt, std::nullopt,
+                         racing_line_caps);
     lap_m = racing_line.length();
     track_progress = true;
     progress_segment = at.segment;

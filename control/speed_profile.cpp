@@ -80,8 +80,8 @@ double SpeedProfile::speed_at(double s, double lap_m) const {
 }
 
 SpeedProfile plan_speed(const Path& path, const SpeedLimits& limits,
-                        std::optional<double> start_speed_mps,
-                        std::optional<double> end_speed_mps) {
+                        std::optional<double> start_speed_mps, std::optional<double> end_speed_mps,
+                        const std::vector<double>& point_cap_mps) {
   SpeedProfile profile;
   const size_t n = path.points.size();
   if (n == 0) return profile;
@@ -94,6 +94,8 @@ SpeedProfile plan_speed(const Path& path, const SpeedLimits& limits,
   const std::vector<double> k = curvatures(path.points, path.closed);
   std::vector<double> v(n);
   for (size_t i = 0; i < n; ++i) v[i] = limits.corner_speed_mps(k[i]);
+  if (point_cap_mps.size() == n)
+    for (size_t i = 0; i < n; ++i) v[i] = std::min(v[i], std::max(0.0, point_cap_mps[i]));
   if (!path.closed && start_speed_mps) v[0] = std::min(v[0], std::max(0.0, *start_speed_mps));
   if (!path.closed && end_speed_mps) v[n - 1] = std::min(v[n - 1], std::max(0.0, *end_speed_mps));
 

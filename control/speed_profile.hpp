@@ -54,8 +54,10 @@ struct SpeedProfile {
 /// an upper bound for the forward pass) and end at most at end_speed_mps (when given); closed
 /// paths are periodic. Longitudinal acceleration shares the tyre with the lateral one (friction
 /// ellipse), so the car brakes before a turn rather than in it.
+/// `point_cap_mps`, when it has one entry per point, caps the speed at each point as well.
 SpeedProfile plan_speed(const Path& path, const SpeedLimits& limits,
                         std::optional<double> start_speed_mps = std::nullopt,
-                        std::optional<double> end_speed_mps = std::nullopt);
+                        std::optional<double> end_speed_mps = std::nullopt,
+                        const std::vector<double>& point_cap_mps = {});
 
 }  // namespace conesim::control

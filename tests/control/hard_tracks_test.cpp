@@ -6,8 +6,10 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <limits>
 #include <numbers>
 
+#include "control/racing_line.hpp"
 #include "kinematic_loop.hpp"
 #include "test_tracks.hpp"
 
@@ -84,6 +86,52 @@ TEST(HardTracks, StretchWithoutRightBoundary) {
   c.straight(80).arc(12, kPi).straight(80).arc(12, kPi);
   tracks::Track t = circuit_from_centre(c.points(), 3.5, 3.0, 65.0, 95.0);
   expect_clean(drive(t, "one-sided"));
+}
+
+TEST(HardTracks, NarrowStretchIsDrivenSlowlyAndClean) {
+  // two blue cones pushed in on the first straight leave a 2.3 m gap over 3 m (below the rules' 3
+  // m, as in EUFS small_track_2): the fast laps pass it at 7 m/s at most, where they run 20+ m/s
+  // elsewhere on the straight, and touch no cone
+  CentreLine c;
+  c.straight(80).arc(12, kPi).straight(80).arc(12, kPi);
+  tracks::Track t = circuit_from_centre(c.points(), 3.5, 3.0);
+  int pushed = 0;
+  for (tracks::Cone& cone : t.cones)
+    if (cone.cls == core::ConeClass::kBlue && cone.position.x() > 38.0 &&
+        cone.position.x() < 44.0 && std::abs(cone.position.y() - 1.75) < 0.01)
+      cone.position.y() = -1.75 + 2.3, ++pushed;
+  ASSERT_EQ(pushed, 2);
+  DriverParams params;
+  params.trackdrive_laps = 3;
+  testing::LoopParams loop;
+  double narrow_speed = 0.0, straight_speed = 0.0;
+  double fast_clearance = std::numeric_limits<double>::infinity();
+  std::vector<core::MapCone> cones;
+  for (const tracks::Cone& cone : t.cones)
+    cones.push_back({cone.id, cone.cls, cone.position, Eigen::Matrix2d::Zero()});
+  const Footprint car{loop.front_m, loop.rear_m, loop.half_width_m, 0.0};
+  loop.on_update = [&](double, const core::Pose2& pose, const DriverStatus& status) {
+    if (status.state != "fast") return;
+    fast_clearance = std::min(fast_clearance, footprint_clearance(pose, cones, car));
+    if (std::abs(pose.y) > 3.0) return;
+    const double front_x = pose.x + 2.25 * std::cos(pose.yaw);
+    if (front_x > 38.0 && pose.x < 44.0)
+      narrow_speed = std::max(narrow_speed, status.target_speed_mps);
+    if (pose.x > 60.0 && pose.x < 75.0)
+      straight_speed = std::max(straight_speed, status.target_speed_mps);
+  };
+  const LoopResult r = run_loop(t, core::EventType::kTrackdrive, params, loop);
+  std::printf(
+      "narrow stretch: cones hit %d, min clearance %.3f m (fast laps %.3f m), speed %.1f m/s "
+      "there, %.1f after\n",
+      r.cones_hit, r.min_clearance_m, fast_clearance, narrow_speed, straight_speed);
+  // lap 1 explores on the centre line between the cones in sight (its footprint is not
+  // planned: 0.005 m at the gap's exit); the fast laps' line, yawed through a 0.6 m sideways
+  // step with 0.34 m of room a side, keeps 0.07 m
+  expect_clean(r, 0.0);
+  EXPECT_GT(fast_clearance, 0.05);
+  EXPECT_LE(narrow_speed, 7.0 + 1e-6);
+  EXPECT_GT(straight_speed, 10.0);
 }
 
 }  // namespace

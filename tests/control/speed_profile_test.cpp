@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace conesim::control {
@@ -25,6 +26,25 @@ Path straight_hairpin_straight(double a, double r, double b, double* hairpin_s) 
   }
   for (double x = a; x > a - b; x -= kStepM) path.points.push_back({x, 2.0 * r});
   return path;
+}
+
+TEST(SpeedProfile, PointCapsHoldWithBrakingBeforeThem) {
+  // a 100 m straight capped at 7 m/s from 60 to 70 m: at most 7 there, braking reaches it
+  // from the 20 m/s cap at the braking limit, and the car speeds up again after it
+  Path path;
+  for (int i = 0; i <= 200; ++i) path.points.push_back({0.5 * i, 0.0});
+  SpeedLimits limits;
+  limits.max_speed_mps = 20.0;
+  std::vector<double> caps(path.points.size(), std::numeric_limits<double>::infinity());
+  for (int i = 120; i <= 140; ++i) caps[static_cast<size_t>(i)] = 7.0;
+  const SpeedProfile p = plan_speed(path, limits, 20.0, std::nullopt, caps);
+  for (int i = 120; i <= 140; ++i) EXPECT_LE(p.speed_mps[static_cast<size_t>(i)], 7.0 + 1e-9);
+  const double braking_m = (20.0 * 20.0 - 7.0 * 7.0) / (2.0 * limits.max_decel_mps2);
+  EXPECT_NEAR(p.speed_at(60.0 - braking_m - 1.0), 20.0, 1e-6);
+  EXPECT_GT(p.speed_at(90.0), 15.0);
+  // a cap vector of another length is ignored
+  const SpeedProfile q = plan_speed(path, limits, 20.0, std::nullopt, {7.0});
+  EXPECT_NEAR(q.speed_at(65.0), 20.0, 1e-6);
 }
 
 TEST(SpeedProfile, RespectsTheLateralLimitOnAKnownCurvature) {
