@@ -269,6 +269,14 @@ nlohmann::json bench_soak(const SoakOptions& o) {
                         {"rss_start_mb", rss_start_mb},
                         {"per_lap", per_lap}};
   const int n = static_cast<int>(lap_end_s.size());
+  // the SLAM update's p99 and the memory by decade of laps (1-10, 11-20, ...)
+  nlohmann::json by_decade = nlohmann::json::array();
+  for (int from = 1; from + 9 <= n; from += 10)
+    by_decade.push_back(
+        {{"laps", std::to_string(from) + "-" + std::to_string(from + 9)},
+         {"slam_update_cpu_ms_p99", quantile(updates_of_laps(from, from + 10), 0.99)},
+         {"rss_mb_at_end", lap_rss_mb[static_cast<size_t>(from + 8)]}});
+  out["by_decade"] = by_decade;
   if (n >= 20) {
     const double first = lap_rss_mb[9], last = lap_rss_mb[static_cast<size_t>(n - 1)];
     out["rss_lap10_mb"] = first;

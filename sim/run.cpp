@@ -60,6 +60,70 @@ void write_file_atomically(const fs::path& file, const std::string& text) {
   fs::rename(partial, file);
 }
 
+// trajectory.csv as the run goes: without shadow back-ends each row goes straight into a
+// partial file, renamed into place at the end, so that a long run holds none of them; with
+// shadows the rows wait in memory for the shadows' columns, which come after the run. A run
+// that does not finish leaves no partial file behind.
+class TrajectoryFile {
+ public:
+  TrajectoryFile(const fs::path& file, const std::string& header, bool streamed)
+      : file_(file), partial_(file.parent_path() / (".partial-" + file.filename().string())) {
+    if (streamed) {
+      out_.open(partial_, std::ios::binary);
+      if (!out_) throw std::runtime_error(partial_.string() + ": cannot write");
+    }
+    add(header);
+  }
+  TrajectoryFile(const TrajectoryFile&) = delete;
+  TrajectoryFile& operator=(const TrajectoryFile&) = delete;
+  ~TrajectoryFile() {
+    if (done_) return;
+    out_.close();
+    std::error_code ec;
+    fs::remove(partial_, ec);
+  }
+
+  // one row without its line end
+  void add(const std::string& row) {
+    if (out_.is_open())
+      out_ << row << '\n';
+    else
+      rows_.push_back(row);
+  }
+
+  // the rows (the header first) with each shadow's pose at each row appended, in place
+  void finish(const std::vector<std::vector<core::Pose2>>& shadow_poses) {
+    if (!out_.is_open()) {
+      std::string text;
+      for (size_t i = 0; i < rows_.size(); ++i) {
+        text += rows_[i];
+        // (row 0 is the header: it names the shadows' columns already)
+        if (i > 0)
+          for (const auto& poses : shadow_poses) {
+            const core::Pose2& p = poses[i - 1];
+            char cols[100];
+            std::snprintf(cols, sizeof(cols), ",%.4f,%.4f,%.5f", p.x, p.y, p.yaw);
+            text += cols;
+          }
+        text += "\n";
+      }
+      write_file_atomically(file_, text);
+      done_ = true;
+      return;
+    }
+    out_.close();
+    if (!out_) throw std::runtime_error(partial_.string() + ": cannot write");
+    fs::rename(partial_, file_);
+    done_ = true;
+  }
+
+ private:
+  fs::path file_, partial_;
+  std::ofstream out_;
+  std::vector<std::string> rows_;
+  bool done_ = false;
+};
+
 // the free space a run needs at least: metrics, trajectory, track and pictures of a long run
 constexpr unsigned long long kMinFreeBytes = 16ull << 20;
 // the probe written into an output folder before a run, bytes
@@ -553,10 +617,19 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   // true position of every cone seen once
   std::vector<char> seen(static_cast<size_t>(track.next_id()), 0);
   std::vector<core::MapCone> map;
+  // the path driven and its speed, for the pictures
   std::vector<core::Vec2> driven;
   std::vector<double> driven_speed_mps;
-  // trajectory.csv's rows; the shadow back-ends' columns are added after the run
-  std::vector<std::string> trajectory_rows;
+  // trajectory.csv, each shadow back-end's estimate beside the driving one's; the shadows'
+  // columns come after the run from the time and the odometry of each row
+  const std::vector<std::string> shadow_lanes =
+      slam ? shadow_names(*slam) : std::vector<std::string>{};
+  std::string trajectory_header =
+      "t_s,x_m,y_m,yaw_rad,speed_mps,steer_rad,accel_cmd_mps2,est_x_m,est_y_m,est_yaw_rad";
+  for (const std::string& lane : shadow_lanes)
+    trajectory_header += "," + lane + "_x_m," + lane + "_y_m," + lane + "_yaw_rad";
+  TrajectoryFile trajectory_file(options.out_dir / "trajectory.csv", trajectory_header,
+                                 shadow_lanes.empty());
   std::vector<TimeUs> trajectory_t;
   std::vector<core::Pose2> trajectory_odometry;
   auto is_knocked = [&referee](int id) { return referee.is_knocked(id); };
@@ -666,14 +739,16 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     }
     if (t % trajectory_period_us == 0) {
       const VehicleTruth truth = car.truth();
-      driven.push_back(truth.pose.position());
-      driven_speed_mps.push_back(truth.vx_mps);
+      if (options.plot) {
+        driven.push_back(truth.pose.position());
+        driven_speed_mps.push_back(truth.vx_mps);
+      }
       char row[200];
       std::snprintf(row, sizeof(row), "%.3f,%.4f,%.4f,%.5f,%.3f,%.5f,%.3f,%.4f,%.4f,%.5f",
                     core::to_seconds(t), truth.pose.x, truth.pose.y, truth.pose.yaw, truth.vx_mps,
                     truth.steer_rad, command.accel_mps2, driving_pose.x, driving_pose.y,
                     driving_pose.yaw);
-      trajectory_rows.push_back(row);
+      trajectory_file.add(row);
       if (!s.faults.empty()) {
         const double along =
             trajectory_errors.empty()
@@ -683,8 +758,10 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
         trajectory_errors.push_back({t, along, truth.pose.position(),
                                      (driving_pose.position() - truth.pose.position()).norm()});
       }
-      trajectory_t.push_back(t);
-      if (slam) trajectory_odometry.push_back(slam->odometry_pose_now(t));
+      if (!shadow_lanes.empty()) {
+        trajectory_t.push_back(t);
+        trajectory_odometry.push_back(slam->odometry_pose_now(t));
+      }
     }
     // MuJoCo's sensors only on the steps whose IMU sample SLAM's odometry takes
     car.step(command,
@@ -789,7 +866,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       {"track", track.name},
       {"seed", s.seed},
       {"slam_driving", s.slam},
-      {"slam_shadows", slam ? shadow_names(*slam) : std::vector<std::string>{}},
+      {"slam_shadows", shadow_lanes},
       {"completed", r.completed},
       {"dnf_reason", r.dnf_reason},
       {"laps", r.laps},
@@ -849,28 +926,10 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
 
   // the results, metrics.json last of them: a run without it did not finish
   {
-    // each shadow back-end's estimate beside the driving one's
-    std::string header =
-        "t_s,x_m,y_m,yaw_rad,speed_mps,steer_rad,accel_cmd_mps2,est_x_m,est_y_m,est_yaw_rad";
     std::vector<std::vector<core::Pose2>> shadow_poses;
-    if (slam) {
-      const std::vector<std::string> lanes = slam->lane_names();
-      for (size_t k = 1; k < lanes.size(); ++k) {
-        header += "," + lanes[k] + "_x_m," + lanes[k] + "_y_m," + lanes[k] + "_yaw_rad";
-        shadow_poses.push_back(slam->lane_poses(k, trajectory_t, trajectory_odometry));
-      }
-    }
-    std::string trajectory = header + "\n";
-    for (size_t i = 0; i < trajectory_rows.size(); ++i) {
-      trajectory += trajectory_rows[i];
-      for (const auto& poses : shadow_poses) {
-        char cols[100];
-        std::snprintf(cols, sizeof(cols), ",%.4f,%.4f,%.5f", poses[i].x, poses[i].y, poses[i].yaw);
-        trajectory += cols;
-      }
-      trajectory += "\n";
-    }
-    write_file_atomically(options.out_dir / "trajectory.csv", trajectory);
+    for (size_t k = 1; k <= shadow_lanes.size(); ++k)
+      shadow_poses.push_back(slam->lane_poses(k, trajectory_t, trajectory_odometry));
+    trajectory_file.finish(shadow_poses);
   }
   tracks::write_eufs_csv(track, options.out_dir / "track.csv");
   write_file_atomically(options.out_dir / "metrics.json", m.dump(2) + "\n");

@@ -168,8 +168,17 @@ struct SlamRunner::Lane {
   SlamScorer scorer;
   std::deque<Pending> pending;
   core::Estimate last_estimate;
-  // the scoring posted to the thread (score, note_cones_in_view), checked in finish()
+  // the scoring posted to the thread (score, note_cones_in_view) and not yet seen done
   std::deque<std::future<void>> scoring;
+  // lets go of the scoring already done, oldest first (an exception in it surfaces here): a
+  // long run keeps only what is still queued
+  void forget_scored() {
+    while (!scoring.empty() &&
+           scoring.front().wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
+      scoring.front().get();
+      scoring.pop_front();
+    }
+  }
   // last member: its jobs use the backend and the scorer, so it stops before the members
   // above go
   std::unique_ptr<WorkerThread> thread;
@@ -254,6 +263,7 @@ void SlamRunner::step(TimeUs t, const VehicleSim& car) {
     const core::Pose2 pose = car.truth().pose;
     for (auto& lane_ptr : lanes_) {
       Lane& lane = *lane_ptr;
+      lane.forget_scored();
       lane.scoring.push_back(
           lane.thread->post([&lane, pose] { lane.scorer.note_cones_in_view(pose); }));
     }
@@ -269,6 +279,8 @@ slam::SlamInput SlamRunner::next_input(const DeliveredDetections& frame) {
   slam::SlamInput input{odometry_.take_delta(stamp), frame.observations, {}};
   forward_.t = -1;
   frame_odometry_.push_back({stamp, frame_odometry_.back().second.compose(input.odometry.delta)});
+  // only lane_poses() of a shadow reads the older ones: without shadows the last one will do
+  if (lanes_.size() == 1) frame_odometry_.pop_front();
   return input;
 }
 
@@ -370,6 +382,7 @@ void SlamRunner::take_in(Lane& lane, DeliveredDetections frame, UpdateResult upd
     last_frame_pose_ = last_estimate_.pose;
   }
   // the scoring on the lane's thread: nothing in the loop reads it
+  lane.forget_scored();
   lane.scoring.push_back(
       lane.thread->post([&lane, frame = std::move(frame), update = std::move(update)] {
         SlamScorer::Update u;

@@ -90,8 +90,9 @@ class SlamRunner {
   /// The driving lane's name.
   std::string name() const;
 
-  /// A lane's estimated pose at each time: its latest update stamped no later, carried forward
-  /// by the odometry (`odometry` the odometry_pose_now of each time). Call after finish().
+  /// A shadow lane's estimated pose at each time: its latest update stamped no later, carried
+  /// forward by the odometry (`odometry` the odometry_pose_now of each time). Call after
+  /// finish().
   std::vector<core::Pose2> lane_poses(size_t lane, const std::vector<core::TimeUs>& t,
                                       const std::vector<core::Pose2>& odometry) const;
 
@@ -140,8 +141,9 @@ class SlamRunner {
   const tracks::Track& track_;
   VehicleSensorFeed feed_;
   slam::Odometry odometry_;
-  // dead reckoning at each frame's stamp: the pose the odometry alone gives
-  std::vector<std::pair<core::TimeUs, core::Pose2>> frame_odometry_;
+  // dead reckoning at each frame's stamp: the pose the odometry alone gives (the last frame's
+  // only without shadow lanes)
+  std::deque<std::pair<core::TimeUs, core::Pose2>> frame_odometry_;
   core::Pose2 start_pose_;
   core::TimeUs latency_us_ = 0;
   core::Estimate last_estimate_;

@@ -46,7 +46,7 @@ void WorkerThread::run() {
       job = std::move(jobs_.front());
       jobs_.pop_front();
     }
-    // packaged tasks keep their exceptions for the future
+    // (post() hands the job's result or exception to its future)
     job();
   }
 }

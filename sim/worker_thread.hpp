@@ -25,13 +25,32 @@ class WorkerThread {
   WorkerThread(const WorkerThread&) = delete;
   WorkerThread& operator=(const WorkerThread&) = delete;
 
-  /// Queues a job; its result (or the exception it threw) arrives through the future.
+  /// Queues a job; its result (or the exception it threw) arrives through the future. The job,
+  /// and whatever it captured, is destroyed once it has run, before its result arrives: a
+  /// future kept for later holds the result only (a packaged task's future would keep the job
+  /// too, and a run that keeps one future per frame would grow by every frame's captures).
   template <typename Job>
   std::future<std::invoke_result_t<Job&>> post(Job job) {
     using Result = std::invoke_result_t<Job&>;
-    auto task = std::make_shared<std::packaged_task<Result()>>(std::move(job));
-    std::future<Result> result = task->get_future();
-    enqueue([task] { (*task)(); });
+    auto promise = std::make_shared<std::promise<Result>>();
+    std::future<Result> result = promise->get_future();
+    auto held = std::make_shared<Job>(std::move(job));
+    enqueue([promise, held]() mutable {
+      try {
+        if constexpr (std::is_void_v<Result>) {
+          (*held)();
+          held.reset();
+          promise->set_value();
+        } else {
+          Result value = (*held)();
+          held.reset();
+          promise->set_value(std::move(value));
+        }
+      } catch (...) {
+        held.reset();
+        promise->set_exception(std::current_exception());
+      }
+    });
     return result;
   }
 

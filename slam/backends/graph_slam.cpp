@@ -88,6 +88,7 @@ void GraphSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
   closure_seen_travel_m_ = 0.0;
   gyro_bias_rps_ = {0.0};
   first_localised_pose_ = 1;
+  forgotten_poses_.clear();
   travel_m_ = 0.0;
   speed_mps_ = 0.0;
   yaw_rate_rps_ = 0.0;
@@ -395,8 +396,19 @@ void GraphSlam::localise() {
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options(config_.localisation_iterations, false), &problem, &summary);
 
-  // the pose leaving the window next time keeps its estimate; its terms are not needed again
+  // the pose leaving the window next time keeps its estimate; its terms are not needed again,
+  // nor are the localised poses before it
   if (first - 1 >= first_localised_pose_) poses_[first - 1].localisation.clear();
+  forget_localised_poses_before(first - 1);
+}
+
+void GraphSlam::forget_localised_poses_before(int keep) {
+  if (keep <= first_localised_pose_) return;
+  const auto from = poses_.begin() + first_localised_pose_;
+  const auto to = poses_.begin() + keep;
+  if (config_.keep_trajectory)
+    for (auto it = from; it != to; ++it) forgotten_poses_.emplace_back(it->stamp, it->pose());
+  poses_.erase(from, to);
 }
 
 bool GraphSlam::in_field_of_view(const core::Pose2& pose, const core::Vec2& landmark) const {
@@ -577,17 +589,27 @@ core::Estimate GraphSlam::estimate() const {
   return e;
 }
 
+std::vector<std::pair<core::TimeUs, core::Pose2>> GraphSlam::stamped_trajectory() const {
+  // the mapping's poses, the localised ones forgotten, the ones still held
+  std::vector<std::pair<core::TimeUs, core::Pose2>> out;
+  out.reserve(poses_.size() + forgotten_poses_.size());
+  for (size_t i = 0; i < poses_.size(); ++i) {
+    if (static_cast<int>(i) == first_localised_pose_)
+      out.insert(out.end(), forgotten_poses_.begin(), forgotten_poses_.end());
+    out.emplace_back(poses_[i].stamp, poses_[i].pose());
+  }
+  return out;
+}
+
 std::vector<core::Pose2> GraphSlam::trajectory() const {
   std::vector<core::Pose2> out;
-  out.reserve(poses_.size());
-  for (const PoseNode& node : poses_) out.push_back(node.pose());
+  for (const auto& [stamp, pose] : stamped_trajectory()) out.push_back(pose);
   return out;
 }
 
 std::vector<core::TimeUs> GraphSlam::trajectory_stamps() const {
   std::vector<core::TimeUs> out;
-  out.reserve(poses_.size());
-  for (const PoseNode& node : poses_) out.push_back(node.stamp);
+  for (const auto& [stamp, pose] : stamped_trajectory()) out.push_back(stamp);
   return out;
 }
 

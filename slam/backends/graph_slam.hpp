@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "slam/association/ml_association.hpp"
@@ -81,6 +82,10 @@ struct GraphSlamConfig {
   double max_drift_variance_m2 = 1.0;
   /// Map the first loop and then localise on it (trackdrive); false keeps mapping.
   bool localise_after_loop_closure = true;
+  /// Keep the estimate of every localised pose for trajectory() (32 bytes a batch). Off, the
+  /// localised poses older than the window are forgotten: memory and update time stay flat
+  /// however many laps the car drives on the fixed map.
+  bool keep_trajectory = false;
 
   /// Empty when usable, otherwise "graph_slam.key: what was expected".
   std::string validate() const;
@@ -101,8 +106,9 @@ class GraphSlam : public Backend {
   std::string name() const override { return "graph"; }
   double last_association_us() const override { return association_us_; }
 
-  /// The whole estimated trajectory, one pose per processed batch (the poses of the pose nodes,
-  /// smoothed by the optimisations).
+  /// The estimated trajectory, one pose per processed batch (the poses of the pose nodes,
+  /// smoothed by the optimisations): the whole of it with keep_trajectory, otherwise the
+  /// mapping's poses and the last localisation window's.
   std::vector<core::Pose2> trajectory() const;
   /// Stamps of the trajectory's poses.
   std::vector<core::TimeUs> trajectory_stamps() const;
@@ -197,6 +203,11 @@ class GraphSlam : public Backend {
   std::vector<int> closure_edges() const;
   // places every landmark that is not fixed at the mean of its observations from the poses
   void place_landmarks_from_poses();
+  // trajectory() with its stamps
+  std::vector<std::pair<core::TimeUs, core::Pose2>> stamped_trajectory() const;
+  // forgets the localised poses before `keep` (nothing uses them again), keeping their
+  // estimates with keep_trajectory
+  void forget_localised_poses_before(int keep);
   // true when no association runs (every observation a landmark of its own)
   bool no_association() const {
     return config_.method && config_.method->method == AssociationMethod::kNone;
@@ -212,6 +223,9 @@ class GraphSlam : public Backend {
   std::array<double, 1> gyro_bias_rps_{};
   /// The first pose localised on the fixed map (poses before it belong to the mapping).
   int first_localised_pose_ = 1;
+  /// The localised poses forgotten so far, stamped (kept with keep_trajectory only): they came
+  /// between poses_[first_localised_pose_ - 1] and poses_[first_localised_pose_].
+  std::vector<std::pair<core::TimeUs, core::Pose2>> forgotten_poses_;
   std::vector<Association> associations_;
   /// Tracking-aided association: the perception tracks' evidence, and the batch's own (the
   /// landmark id each observation paired with without the tracks, -1: none).

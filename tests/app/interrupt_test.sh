@@ -45,6 +45,9 @@ interrupt() {
   expect "$name: exit status $got, expected $status" [ "$got" -eq "$status" ]
   expect "$name: stopped in $took ms, at most 1000" [ "$took" -le 1000 ]
   expect_missing "$name: no metrics.json" "$out/metrics.json"
+  # trajectory.csv is written as the run goes into a partial file: an unfinished run removes it
+  expect_missing "$name: no partial trajectory.csv" "$out/.partial-trajectory.csv"
+  expect_missing "$name: no trajectory.csv" "$out/trajectory.csv"
   expect_text "$name" "$out/INCOMPLETE" "^interrupted by $signal at sim time"
   expect_text "$name" "$work/$name.err" "^interrupted by $signal"
 }

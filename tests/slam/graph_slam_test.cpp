@@ -28,9 +28,16 @@ void print(const char* what, const testing::DriveResult& r, double smoothed_ate_
       r.update_cpu_ms_median, r.update_cpu_ms_p99);
 }
 
+// GraphSLAM keeping every localised pose (the smoothed trajectory is scored)
+GraphSlamConfig keeping_trajectory() {
+  GraphSlamConfig config;
+  config.keep_trajectory = true;
+  return config;
+}
+
 TEST(GraphSlam, TwoLapsOfAGeneratedCircuitMapAndLocaliseWithinTargets) {
   const tracks::Track track = tracks::generate_circuit(3);
-  GraphSlam slam;
+  GraphSlam slam(keeping_trajectory());
   testing::DriveParams params;
   params.seed = 3;
   params.trace = std::getenv("CONESIM_SLAM_TRACE") != nullptr;
@@ -65,7 +72,7 @@ TEST(GraphSlam, LocalisesOnAPriorMapWithoutChangingIt) {
   // the known layout (as for skidpad) given as the map: localisation from the first batch
   const tracks::Track track = tracks::generate_circuit(5);
   const std::vector<core::MapCone> prior = layout_as_map(track);
-  GraphSlam slam;
+  GraphSlam slam(keeping_trajectory());
   testing::DriveParams params;
   params.seed = 5;
   params.laps = 1.0;
@@ -91,7 +98,7 @@ TEST(GraphSlam, LocalisationHoldsTheHeadingWithAnUncalibratedGyro) {
   // (trackdrive seed 3 left the track); the window over the last poses holds it to the map.
   const tracks::Track track = tracks::generate_circuit(5);
   const std::vector<core::MapCone> prior = layout_as_map(track);
-  GraphSlam slam;
+  GraphSlam slam(keeping_trajectory());
   testing::DriveParams params;
   params.seed = 5;
   params.laps = 2.0;
@@ -106,6 +113,29 @@ TEST(GraphSlam, LocalisationHoldsTheHeadingWithAnUncalibratedGyro) {
   // resting on the last pose alone it was 0.0047)
   EXPECT_LE(r.ate_rmse_m, 0.10);
   EXPECT_LE(r.yaw_rmse_rad, 0.003);
+}
+
+TEST(GraphSlam, ForgettingOldLocalisedPosesChangesNoEstimate) {
+  // localising on a map, the poses before the window are never used again: forgotten, the
+  // estimate is the same to the bit and the graph holds the window only (a 100-lap soak grew
+  // by every batch's pose node)
+  const tracks::Track track = tracks::generate_circuit(5);
+  testing::DriveParams params;
+  params.seed = 5;
+  params.laps = 0.5;
+  params.prior_map = layout_as_map(track);
+  GraphSlam kept(keeping_trajectory()), forgetting;
+  const testing::DriveResult r = testing::drive(track, kept, params);
+  testing::drive(track, forgetting, params);
+  const core::Estimate a = kept.estimate(), b = forgetting.estimate();
+  EXPECT_EQ(a.pose.x, b.pose.x);
+  EXPECT_EQ(a.pose.y, b.pose.y);
+  EXPECT_EQ(a.pose.yaw, b.pose.yaw);
+  // every batch's pose kept, or the start, the window and the fixed pose before it
+  EXPECT_EQ(static_cast<int>(kept.trajectory().size()), r.batches + 1);
+  EXPECT_EQ(forgetting.trajectory().size(),
+            static_cast<size_t>(GraphSlamConfig{}.localisation_window_poses + 2));
+  EXPECT_EQ(kept.trajectory().back().x, forgetting.trajectory().back().x);
 }
 
 TEST(GraphSlam, SameInputGivesTheSameEstimate) {
