@@ -96,8 +96,12 @@ check("close() early is a DNF", not closed["completed"] and "closed the simulati
 def conesim_run(out, class_file, cls, kind="driver", scenario_set=()):
     spec = "{plugin: %s, config: {file: %s, class: %s}}" % (python_plugin, class_file, cls)
     extra = [a for value in scenario_set for a in ("--set", value)]
+    # the conesim binary carries its own sanitizer run-time (a sanitizer build): not the one
+    # preloaded into this interpreter
+    run_env = {k: v for k, v in os.environ.items() if k != "LD_PRELOAD"}
     return subprocess.run([conesim_bin, "run", "autocross", "--no-plot", "--out", out, *extra,
-                           "--set", "autonomy.%s=%s" % (kind, spec)], capture_output=True, text=True)
+                           "--set", "autonomy.%s=%s" % (kind, spec)], capture_output=True, text=True,
+                          env=run_env)
 
 
 def broken_class_dnf(name, source_text, kind, scenario_set=()):

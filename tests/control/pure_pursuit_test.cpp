@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <numbers>
 
 #include "test_tracks.hpp"
 #include "vehicle_models/kinematics.hpp"
@@ -13,7 +12,6 @@ namespace {
 
 using core::Pose2;
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kWheelbaseM = 1.53;
 
 Path circle(double radius, double spacing_m) {

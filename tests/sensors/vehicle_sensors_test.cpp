@@ -124,7 +124,7 @@ TEST(SensorTiming, RejectsRatesOffTheMillisecondGrid) {
   EXPECT_EQ((SensorTiming{100.0, 0.0}.validate("imu")), "");
   EXPECT_NE((SensorTiming{300.0, 0.0}.validate("imu").find("imu.rate_hz")), std::string::npos);
   EXPECT_NE((SensorTiming{100.0, -1.0}.validate("imu").find("imu.latency_s")), std::string::npos);
-  EXPECT_EQ(SensorTiming(200.0, 0.002).period_us(), 5000);
+  EXPECT_EQ((SensorTiming{200.0, 0.002}).period_us(), 5000);
 }
 
 TEST(VehicleSensors, SameSeedSameNoise) {

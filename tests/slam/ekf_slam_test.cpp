@@ -27,9 +27,11 @@ core::Pose2 pose(const Eigen::Vector3d& v) {
 }
 
 TEST(EkfSlamJacobians, MotionModelMatchesNumericalDerivatives) {
-  for (const auto& [p, d] :
+  for (const auto& [pose_then, delta] :
        {std::pair{core::Pose2{1.0, -2.0, 0.7}, core::Pose2{0.9, 0.05, 0.03}},
         std::pair{core::Pose2{-3.0, 4.0, -2.9}, core::Pose2{1.4, -0.2, -0.2}}}) {
+    // named copies: clang 14 cannot capture structured bindings in a lambda
+    const core::Pose2 p = pose_then, d = delta;
     Eigen::Matrix3d f_pose, f_delta;
     EkfSlam::motion(p, d, &f_pose, &f_delta);
     const auto by_pose = numerical<3, 3>(

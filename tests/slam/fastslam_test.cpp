@@ -21,10 +21,13 @@ using testing::numerical;
 
 TEST(FastSlamJacobians, MeasurementModelMatchesNumericalDerivatives) {
   // G_s and G_theta of the proposal and the landmark filters, at a few poses and landmarks
-  for (const auto& [pose, landmark] :
+  for (const auto& [pose_at, landmark_at] :
        std::vector<std::pair<core::Pose2, core::Vec2>>{{{1.0, -2.0, 0.3}, {7.0, 1.5}},
                                                        {{-4.0, 3.0, -2.6}, {-9.0, 0.5}},
                                                        {{0.0, 0.0, 1.4}, {0.5, 6.0}}}) {
+    // named copies: clang 14 cannot capture structured bindings in a lambda
+    const core::Pose2 pose = pose_at;
+    const core::Vec2 landmark = landmark_at;
     Eigen::Matrix<double, 2, 3> gs;
     Eigen::Matrix2d gl;
     predict_observation(pose, landmark, &gs, &gl);
