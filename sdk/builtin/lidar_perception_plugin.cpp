@@ -46,18 +46,19 @@ class LidarPerceptionPlugin final : public sdk::Perception {
   }
 
   sdk::ConeFrame on_lidar(const sdk::LidarSweep& sweep, const sdk::Motion& motion) override {
-    // the detector knows where the sensor sits from the first sweep
-    if (!detector_)
+    // the detector knows where the sensor sits from the first sweep, and that sweep tells
+    // whether the LiDAR has more rings than the configured model (another model)
+    if (!detector_) {
+      const size_t rings = config_.ring_elevations_deg.size();
+      for (const sdk::LidarPoint& p : sweep.points)
+        if (p.ring >= rings)
+          throw std::runtime_error("a point of ring " + std::to_string(p.ring) + ", but model " +
+                                   model_ + " has " + std::to_string(rings) +
+                                   " rings: set the plug-in's `model` to the scenario's "
+                                   "sensors.lidar.model");
       detector_ = std::make_unique<slam::frontend::LidarConeDetector>(
           config_, sdk_bridge::from_sdk(sweep.sensor_in_vehicle));
-    // a sweep from a LiDAR with more rings than the configured model is another model
-    const size_t rings = config_.ring_elevations_deg.size();
-    for (const sdk::LidarPoint& p : sweep.points)
-      if (p.ring >= rings)
-        throw std::runtime_error("a point of ring " + std::to_string(p.ring) + ", but model " +
-                                 model_ + " has " + std::to_string(rings) +
-                                 " rings: set the plug-in's `model` to the scenario's "
-                                 "sensors.lidar.model");
+    }
     // the cones of the sweep, de-skewed to its last column
     const slam::frontend::SweepMotion sweep_motion{motion.speed_mps, motion.yaw_rate_rps};
     const slam::frontend::LidarDetections detections =
