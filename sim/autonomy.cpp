@@ -8,6 +8,7 @@
 #include <mutex>
 
 #include "core/error.hpp"
+#include "core/files.hpp"
 #include "sim/scenario.hpp"
 
 namespace conesim::sim {
@@ -66,8 +67,8 @@ PluginInstance<T> make_instance(const PluginSpec& spec, const sdk::RunInfo& run,
 // the library
 
 std::shared_ptr<const PluginLibrary> PluginLibrary::open(const fs::path& file) {
-  if (!fs::exists(file)) throw std::runtime_error(file.string() + ": no such plug-in file");
-  if (!fs::is_regular_file(file))
+  if (!core::path_exists(file)) throw std::runtime_error(file.string() + ": no such plug-in file");
+  if (!core::is_file(file))
     throw std::runtime_error(file.string() + ": not a file (a plug-in is a shared library)");
   std::shared_ptr<PluginLibrary> lib(new PluginLibrary);
   lib->file_ = file;

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "core/files.hpp"
 #include "sim/gnuplot.hpp"
 #include "sim/interrupt.hpp"
 #include "sim/process_pool.hpp"
@@ -576,7 +577,7 @@ StudyPlan plan_study(const CompareOptions& o) {
     throw InputError("STUDY", 0, "expected one of " + known + ", got '" + o.study + "'");
   }
   for (const fs::path& f : o.track_files)
-    if (!fs::is_regular_file(f)) throw InputError(f.string(), 0, "no such track file");
+    if (!core::is_file(f)) throw InputError(f.string(), 0, "no such track file");
   const fs::path scenario = find_scenario(kScenario);
   for (const StudyDefinition& def : studies()) {
     if (std::find(plan.studies.begin(), plan.studies.end(), def.name) == plan.studies.end())
@@ -587,7 +588,7 @@ StudyPlan plan_study(const CompareOptions& o) {
     if (tracks.empty())
       for (const std::string& t : def.tracks) {
         const fs::path file = shipped_corpus_dir() / t;
-        if (!fs::is_regular_file(file))
+        if (!core::is_file(file))
           throw InputError(file.string(), 0, "the study's track is missing (CONESIM_CORPUS?)");
         tracks.push_back(
             {fs::path(t).parent_path().string() + "/" + fs::path(t).stem().string(), file});
@@ -908,7 +909,7 @@ int run_compare(const fs::path& self, const CompareOptions& o, std::ostream& out
   for (size_t i = 0; i < plan.runs.size(); ++i) {
     const StudyRun& r = plan.runs[i];
     const fs::path dir = o.out_dir / r.dir;
-    if (o.reuse && fs::is_regular_file(dir / "metrics.json")) {
+    if (o.reuse && core::is_file(dir / "metrics.json")) {
       read_metrics(i);
       if (results[i].metrics.is_object()) {
         results[i].exit_code = results[i].metrics.value("passed", false) ? 0 : 1;

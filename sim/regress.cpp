@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "core/files.hpp"
 #include "sim/interrupt.hpp"
 #include "sim/process_pool.hpp"
 #include "sim/report.hpp"
@@ -98,10 +99,10 @@ std::optional<PlannedTrack> read_planned(const fs::path& file, const std::string
 void add_track_set(const std::string& set, std::vector<PlannedTrack>& tracks,
                    std::vector<SkippedTrack>& skipped) {
   const fs::path where = set == "corpus" ? shipped_corpus_dir() : fs::path(set);
-  if (fs::is_directory(where)) {
+  if (core::is_folder(where)) {
     // every track file under the folder, sorted
     std::vector<fs::path> files;
-    for (const auto& e : fs::recursive_directory_iterator(where))
+    for (const auto& e : fs::recursive_directory_iterator(where, fs::directory_options::skip_permission_denied))
       if (e.is_regular_file() && is_track_file(e.path())) files.push_back(e.path());
     std::sort(files.begin(), files.end());
     if (files.empty()) throw InputError(set, 0, "no track files (.yaml, .yml, .csv) in the folder");
@@ -109,7 +110,7 @@ void add_track_set(const std::string& set, std::vector<PlannedTrack>& tracks,
       if (auto t = read_planned(f, label_of(f, where), &skipped)) tracks.push_back(*t);
     return;
   }
-  if (!fs::is_regular_file(where))
+  if (!core::is_file(where))
     throw InputError(set, 0, "no such folder or list of tracks (or `corpus`)");
   // a list: one track path a line, relative to the list's folder; # starts a comment
   std::ifstream in(where);
@@ -123,7 +124,7 @@ void add_track_set(const std::string& set, std::vector<PlannedTrack>& tracks,
     if (start == std::string::npos) continue;
     fs::path file = line.substr(start);
     if (file.is_relative()) file = where.parent_path() / file;
-    if (!fs::is_regular_file(file))
+    if (!core::is_file(file))
       throw InputError(where.string(), line_number, "no such track file: " + file.string());
     tracks.push_back(*read_planned(file, label_of(file, where.parent_path()), nullptr));
   }
@@ -317,7 +318,7 @@ RegressionPlan plan_regression(const fs::path& self, const RegressOptions& o) {
   // the tracks, read now so that a bad one stops everything before any run
   std::vector<PlannedTrack> tracks;
   for (const fs::path& f : o.track_files) {
-    if (!fs::is_regular_file(f)) throw InputError(f.string(), 0, "no such track file");
+    if (!core::is_file(f)) throw InputError(f.string(), 0, "no such track file");
     tracks.push_back(*read_planned(f, label_of(f, f.parent_path()), nullptr));
   }
   for (const std::string& set : o.track_sets) add_track_set(set, tracks, plan.skipped);
@@ -823,7 +824,7 @@ std::string summary_html(const std::vector<RunRow>& rows, const RegressionPlan& 
       << fixed(r.da_correct_fraction, 3) << "</td><td>" << fixed(r.perception_recall, 3)
       << "</td><td>" << fixed(r.perception_precision, 3) << "</td><td>" << fixed(r.wall_time_s, 1)
       << "</td><td>" << fixed(r.real_time_factor, 0) << "</td><td>";
-    if (fs::exists(o.out_dir / report))
+    if (core::path_exists(o.out_dir / report))
       h << "<a href=\"" << html_escape(report.generic_string()) << "\">report</a>";
     h << "</td></tr>\n";
   }
@@ -916,7 +917,7 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
     if (!o.plot) argv.push_back("--no-plot");
     // a scenario given as a file runs from that file
     for (const std::string& given : o.scenarios)
-      if (fs::path(given).stem() == r.scenario && fs::is_regular_file(given)) argv[2] = given;
+      if (fs::path(given).stem() == r.scenario && core::is_file(given)) argv[2] = given;
     jobs.push_back({argv, dir / "log.txt"});
   }
   // the runs' command lines in runs.json: --resume continues only the same runs

@@ -14,6 +14,7 @@
 #include <type_traits>
 
 #include "core/error.hpp"
+#include "core/files.hpp"
 #include "sensors/lidar_config.hpp"
 #include "slam/factory.hpp"
 #include "vehicle_models/mjcf_builder.hpp"
@@ -366,7 +367,7 @@ fs::path resolve(const fs::path& scenario_file, const std::string& name) {
   const fs::path p(name);
   if (p.is_absolute()) return p;
   const fs::path beside = scenario_file.parent_path() / p;
-  if (fs::exists(beside)) return beside;
+  if (core::path_exists(beside)) return beside;
   return p;
 }
 
@@ -585,11 +586,11 @@ fs::path shipped_scenarios_dir() {
 
 fs::path find_scenario(const std::string& name_or_path) {
   const fs::path as_given(name_or_path);
-  if (fs::is_regular_file(as_given)) return as_given;
+  if (core::is_file(as_given)) return as_given;
   const fs::path shipped = shipped_scenarios_dir() / (name_or_path + ".yaml");
-  if (fs::is_regular_file(shipped)) return shipped;
+  if (core::is_file(shipped)) return shipped;
   std::string known;
-  if (fs::is_directory(shipped_scenarios_dir())) {
+  if (core::is_folder(shipped_scenarios_dir())) {
     std::vector<std::string> names;
     for (const auto& e : fs::directory_iterator(shipped_scenarios_dir()))
       if (e.path().extension() == ".yaml") names.push_back(e.path().stem().string());
@@ -606,7 +607,7 @@ namespace {
 // parses a YAML file; a failure names the file and the line
 YAML::Node parse_yaml_file(const fs::path& file, const std::string& what) {
   const std::string name = file.string();
-  if (!fs::is_regular_file(file)) throw InputError(name, 0, "no such " + what + " file");
+  if (!core::is_file(file)) throw InputError(name, 0, "no such " + what + " file");
   std::ifstream in(file, std::ios::binary);
   if (!in) throw InputError(name, 0, "cannot read the " + what + " file");
   try {
@@ -980,7 +981,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
            if (s.vehicle_source == "default") return;
            // a file that is not there is this file's mistake, at this line
            const fs::path vehicle_file = resolve(file, n.Scalar());
-           if (!fs::is_regular_file(vehicle_file))
+           if (!core::is_file(vehicle_file))
              top.fail(n, "vehicle",
                       "expected default or a vehicle YAML file, got '" + n.Scalar() +
                           "' (no such file" +
