@@ -22,9 +22,11 @@ constexpr double kMinClearanceM = 0.15;
 void print(const char* name, const LoopResult& r) {
   std::printf(
       "%s: finished %d in %.2f s, laps %d, cones hit %d, min clearance %.3f m, "
-      "max deviation %.3f m (at %.1f %.1f, t %.2f s), max speed %.2f m/s\n",
+      "max deviation %.3f m (at %.1f %.1f, t %.2f s), footprint outside the lanes %.3f m (at "
+      "%.1f %.1f), max speed %.2f m/s\n",
       name, r.finished, r.time_s, r.laps_counted, r.cones_hit, r.min_clearance_m, r.max_deviation_m,
-      r.max_deviation_at.x(), r.max_deviation_at.y(), r.max_deviation_time_s, r.max_speed_mps);
+      r.max_deviation_at.x(), r.max_deviation_at.y(), r.max_deviation_time_s, r.max_outside_m,
+      r.max_outside_at.x(), r.max_outside_at.y(), r.max_speed_mps);
 }
 
 // lap times from the crossings of one gate
@@ -94,8 +96,8 @@ TEST_P(ClosedLoopCircuit, AutocrossExploresOneLapAndStops) {
   EXPECT_EQ(laps.size(), 1u);
   EXPECT_EQ(r.cones_hit, 0);
   EXPECT_GT(r.min_clearance_m, kMinClearanceM);
-  // the car's middle stays within the narrowest half width less half the car
-  EXPECT_LT(r.max_deviation_m, 0.5 * gp.width_m - 0.7);
+  // the whole car stays between the lanes
+  EXPECT_EQ(r.max_outside_m, 0.0);
 }
 
 TEST_P(ClosedLoopCircuit, TrackdriveCountsTenLapsAndStops) {
@@ -111,7 +113,7 @@ TEST_P(ClosedLoopCircuit, TrackdriveCountsTenLapsAndStops) {
   EXPECT_EQ(static_cast<int>(laps.size()), params.trackdrive_laps);
   EXPECT_EQ(r.cones_hit, 0);
   EXPECT_GT(r.min_clearance_m, kMinClearanceM);
-  EXPECT_LT(r.max_deviation_m, 0.5 * tracks::GeneratorParams{}.width_m - 0.7);
+  EXPECT_EQ(r.max_outside_m, 0.0);
   // the known circuit is driven faster than the exploration lap
   ASSERT_GE(laps.size(), 2u);
   EXPECT_LT(laps[1], laps[0]);

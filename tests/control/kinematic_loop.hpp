@@ -15,6 +15,7 @@
 #include "control/driver.hpp"
 #include "control/pure_pursuit.hpp"
 #include "tracks/track.hpp"
+#include "tracks/track_area.hpp"
 #include "vehicle_models/kinematics.hpp"
 
 namespace conesim::control::testing {
@@ -67,6 +68,11 @@ struct LoopResult {
   /// Where that was (track frame) and how far the car had gone, seconds.
   Vec2 max_deviation_at = Vec2::Zero();
   double max_deviation_time_s = 0.0;
+  /// Farthest a corner of the footprint went outside the boundaries (the lanes' polylines, as
+  /// the referee judges them), metres; 0 when the whole car stayed between the lanes.
+  double max_outside_m = 0.0;
+  /// Where that was (track frame).
+  Vec2 max_outside_at = Vec2::Zero();
   double max_speed_mps = 0.0;
   /// Times the front wing crossed each timing gate, seconds.
   std::vector<std::vector<double>> gate_crossings;
@@ -111,6 +117,7 @@ inline LoopResult run_loop(const tracks::Track& track, core::EventType event,
   }
   Driver driver(event, params, vehicle, prior);
 
+  const tracks::TrackArea area = tracks::TrackArea::of(track);
   LoopResult result;
   result.gate_crossings.resize(track.timing_gates.size());
   std::vector<bool> seen(track.cones.size(), false), hit(track.cones.size(), false);
@@ -196,6 +203,19 @@ inline LoopResult run_loop(const tracks::Track& track, core::EventType event,
       if (clearance <= 0.0 && !hit[i]) {
         hit[i] = true;
         ++result.cones_hit;
+      }
+    }
+    if (!area.empty()) {
+      for (const Vec2& corner :
+           {Vec2(loop.front_m, loop.half_width_m), Vec2(loop.front_m, -loop.half_width_m),
+            Vec2(-loop.rear_m, loop.half_width_m), Vec2(-loop.rear_m, -loop.half_width_m)}) {
+        const Vec2 p = pose.transform(corner);
+        if (area.contains(p)) continue;
+        const double outside = area.nearest_boundary(p)->distance_m;
+        if (outside > result.max_outside_m) {
+          result.max_outside_m = outside;
+          result.max_outside_at = p;
+        }
       }
     }
     if (!track.centre_line.empty()) {
