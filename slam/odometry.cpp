@@ -44,7 +44,9 @@ std::string OdometryConfig::validate() const {
         check("gyro_sigma_rad_per_sqrt_s", gyro_sigma_rad_per_sqrt_s, 1e-6, 1.0),
         check("bicycle_sigma_rad_per_sqrt_s_per_mps", bicycle_sigma_rad_per_sqrt_s_per_mps, 1e-6,
               1.0),
-        check("standstill_speed_mps", standstill_speed_mps, 0.0, 1.0)}) {
+        check("standstill_speed_mps", standstill_speed_mps, 0.0, 1.0),
+        check("slip_tolerance_mps", slip_tolerance_mps, 0.0, 100.0),
+        check("slip_tolerance_fraction", slip_tolerance_fraction, 0.0, 10.0)}) {
     if (!e.empty()) return e;
   }
   return {};
@@ -143,10 +145,46 @@ void Odometry::integrate_to(core::TimeUs stamp) {
 
 void Odometry::add_wheel_speeds(const core::WheelSpeeds& sample) {
   integrate_to(sample.stamp);
-  // the rear axle centre moves at the mean of the rear wheels
+  // the rear axle centre moves at the mean of the rear wheels; the front axle centre at the
+  // rear one's speed over cos(steer) (kinematic bicycle)
+  const double rear = 0.5 * (sample.omega_rps[2] + sample.omega_rps[3]) * config_.wheel_radius_m;
+  const double front = 0.5 * (sample.omega_rps[0] + sample.omega_rps[1]) * config_.wheel_radius_m *
+                       std::cos(steer_rad_);
+  const size_t slot = static_cast<size_t>(speed_samples_ % kSpeedWindow);
+  recent_rear_mps_[slot] = rear;
+  recent_front_mps_[slot] = front;
+  const int n = std::min(speed_samples_ + 1, kSpeedWindow);
+  double rear_mean = 0.0, front_mean = 0.0;
+  for (int i = 0; i < n; ++i) {
+    rear_mean += recent_rear_mps_[static_cast<size_t>(i)];
+    front_mean += recent_front_mps_[static_cast<size_t>(i)];
+  }
+  rear_mean /= n;
+  front_mean /= n;
+  const double dt =
+      has_wheels_ ? std::max(0.0, core::to_seconds(sample.stamp - last_wheel_stamp_)) : 0.0;
+  last_wheel_stamp_ = sample.stamp;
   has_wheels_ = true;
-  speed_mps_ = 0.5 * (sample.omega_rps[2] + sample.omega_rps[3]) * config_.wheel_radius_m;
-  recent_speeds_mps_[static_cast<size_t>(speed_samples_++ % kSpeedWindow)] = speed_mps_;
+  // one sample reads the speed only to a few m/s (whole teeth), so the axles are compared over
+  // a full window; while they agree the rear axle gives the speed as it always did. The IMU's
+  // acceleration carries a speed from sample to sample, pulled slowly to the wheels' (so that
+  // the few samples a slip needs to show in the window barely move it)
+  const double predicted = std::max(0.0, carried_speed_mps_ + accel_x_mps2_ * dt);
+  const double tolerance = config_.slip_tolerance_mps +
+                           config_.slip_tolerance_fraction * std::max(rear_mean, front_mean);
+  if (n < kSpeedWindow || std::abs(rear_mean - front_mean) <= tolerance) {
+    speed_mps_ = rear;
+  } else {
+    // one axle slips: the one nearer the carried speed is rolling
+    const bool front_rolls = std::abs(front_mean - predicted) < std::abs(rear_mean - predicted);
+    speed_mps_ = front_rolls ? front : rear;
+    ++slip_samples_;
+  }
+  carried_speed_mps_ = n < kSpeedWindow
+                           ? speed_mps_
+                           : predicted + std::min(1.0, dt / kCarryTimeS) * (speed_mps_ - predicted);
+  recent_speeds_mps_[slot] = speed_mps_;
+  ++speed_samples_;
 }
 
 double Odometry::mean_speed_mps() const {
@@ -165,6 +203,7 @@ void Odometry::add_steering(const core::SteeringSample& sample) {
 void Odometry::add_imu(const core::ImuSample& sample) {
   integrate_to(sample.stamp);
   gyro_z_rps_ = sample.gyro_rps.z();
+  accel_x_mps2_ = sample.accel_mps2.x();
   has_gyro_ = true;
   // standing still for a while (not just started): the gyro reads its bias, learnt as a mean
   if (!has_wheels_ || std::abs(speed_mps_) >= config_.standstill_speed_mps) {

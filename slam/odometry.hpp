@@ -1,7 +1,7 @@
 #pragma once
-// Odometry for SLAM: speed from the rear wheel encoders, yaw rate from the IMU gyro and from the
-// steering angle through the kinematic bicycle model, integrated between observation batches
-// into an SE(2) delta with its covariance.
+// Odometry for SLAM: speed from the rear wheel encoders (the front ones when the rear slip), yaw
+// rate from the IMU gyro and from the steering angle through the kinematic bicycle model,
+// integrated between observation batches into an SE(2) delta with its covariance.
 
 #include <Eigen/Core>
 #include <array>
@@ -47,6 +47,12 @@ struct OdometryConfig {
   double bicycle_sigma_rad_per_sqrt_s_per_mps = 0.01;
   /// Below this wheel speed the car is taken as standing and the gyro bias is learnt, m/s.
   double standstill_speed_mps = 0.05;
+  /// The rear (driven) and the front axle's speeds, each averaged over kSpeedWindow samples,
+  /// differing by more than this plus slip_tolerance_fraction of the speed: one axle slips (the
+  /// driven wheels spin, or wheels lock under braking), and the speed comes from the axle that
+  /// agrees better with the speed carried forward by the IMU's longitudinal acceleration, m/s.
+  double slip_tolerance_mps = 1.0;
+  double slip_tolerance_fraction = 0.10;
 
   /// Empty when usable, otherwise "odometry.key: what was expected".
   std::string validate() const;
@@ -74,11 +80,12 @@ class Odometry {
 
   /// Starts integrating at this stamp (the first batch's stamp).
   void reset(core::TimeUs stamp);
-  /// Adds a wheel speed sample (rear wheels give the speed).
+  /// Adds a wheel speed sample (rear wheels give the speed; the front ones while the rear slip).
   void add_wheel_speeds(const core::WheelSpeeds& sample);
   /// Adds a steering angle sample (single-track equivalent angle).
   void add_steering(const core::SteeringSample& sample);
-  /// Adds an IMU sample (the gyro's z gives the yaw rate).
+  /// Adds an IMU sample (the gyro's z gives the yaw rate; the accelerometer's x carries the
+  /// speed across a wheel slip).
   void add_imu(const core::ImuSample& sample);
 
   /// Integrates up to `stamp` and returns the motion since the last call (or reset), then starts
@@ -95,6 +102,9 @@ class Odometry {
   double yaw_rate_rps() const;
   /// The gyro bias learnt at standstill, rad/s.
   double gyro_bias_rps() const { return gyro_bias_rps_; }
+  /// Wheel samples whose speed came from the front axle because the rear one slipped (or the
+  /// front one from the rear), since construction.
+  int slip_samples() const { return slip_samples_; }
 
  private:
   void integrate_to(core::TimeUs stamp);
@@ -105,7 +115,18 @@ class Odometry {
   // the latest wheel-sample speeds, oldest overwritten first
   static constexpr int kSpeedWindow = 10;
   std::array<double, kSpeedWindow> recent_speeds_mps_{};
+  // the same window for each axle's own speed (rear axle centre; front axle carried to the rear
+  // one through the steering angle)
+  std::array<double, kSpeedWindow> recent_rear_mps_{};
+  std::array<double, kSpeedWindow> recent_front_mps_{};
   int speed_samples_ = 0;
+  // a speed carried by the IMU's acceleration and pulled to the wheels' speed with this time
+  // constant, s
+  static constexpr double kCarryTimeS = 0.3;
+  double carried_speed_mps_ = 0.0;
+  core::TimeUs last_wheel_stamp_ = 0;
+  double accel_x_mps2_ = 0.0;
+  int slip_samples_ = 0;
   double steer_rad_ = 0.0;
   double gyro_z_rps_ = 0.0;
   bool has_gyro_ = false;

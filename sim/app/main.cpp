@@ -591,12 +591,6 @@ int main(int argc, char** argv) {
   } catch (const conesim::core::InputError& e) {
     std::cerr << e.what() << "\n";
     return conesim::sim::kExitBadInput;
-  } catch (const std::filesystem::filesystem_error& e) {
-    // a path the system refuses (too long, no permission, disk full): the user's or the
-    // machine's, not a bug; name the path and the system's reason
-    std::cerr << (e.path1().empty() ? std::string("conesim") : e.path1().string()) << ": "
-              << e.code().message() << "\n";
-    return conesim::sim::kExitBadInput;
   } catch (const std::exception& e) {
     std::cerr << "conesim: internal error: " << e.what() << "\n";
     return conesim::sim::kExitInternalError;
