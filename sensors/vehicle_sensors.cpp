@@ -21,6 +21,14 @@ std::string first_error(std::initializer_list<std::string> errors) {
   return {};
 }
 
+// two independent draws as a vector, y drawn before x (a statement each: the order of a call's
+// arguments is the compiler's choice, and gcc, whose order this keeps, and clang differ)
+Eigen::Vector2d gaussian2(core::Rng& rng, double sigma) {
+  const double y = core::gaussian(rng, 0.0, sigma);
+  const double x = core::gaussian(rng, 0.0, sigma);
+  return {x, y};
+}
+
 Eigen::Vector3d gaussian3(core::Rng& rng, double sigma) {
   return {core::gaussian(rng, 0.0, sigma), core::gaussian(rng, 0.0, sigma),
           core::gaussian(rng, 0.0, sigma)};
@@ -146,16 +154,11 @@ core::GnssFix Gnss::sample(const VehicleSensorTruth& truth) {
   const double dt = 1.0 / config_.timing.rate_hz;
   const double phi = std::exp(-dt / config_.bias_time_constant_s);
   const double drive = config_.bias_sigma_m * std::sqrt(1.0 - phi * phi);
-  bias_ = phi * bias_ +
-          Eigen::Vector2d(core::gaussian(rng_, 0.0, drive), core::gaussian(rng_, 0.0, drive));
+  bias_ = phi * bias_ + gaussian2(rng_, drive);
   core::GnssFix fix;
   fix.stamp = truth.stamp;
-  fix.position = truth.vehicle_pose.position.head<2>() + bias_ +
-                 Eigen::Vector2d(core::gaussian(rng_, 0.0, config_.noise_m),
-                                 core::gaussian(rng_, 0.0, config_.noise_m));
-  fix.velocity_mps =
-      truth.velocity_mps + Eigen::Vector2d(core::gaussian(rng_, 0.0, config_.velocity_noise_mps),
-                                           core::gaussian(rng_, 0.0, config_.velocity_noise_mps));
+  fix.position = truth.vehicle_pose.position.head<2>() + bias_ + gaussian2(rng_, config_.noise_m);
+  fix.velocity_mps = truth.velocity_mps + gaussian2(rng_, config_.velocity_noise_mps);
   fix.sigma_m = std::hypot(config_.noise_m, config_.bias_sigma_m);
   return fix;
 }

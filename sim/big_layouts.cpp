@@ -68,8 +68,9 @@ tracks::Track clutter(int cones, uint64_t seed) {
   core::Rng rng(seed * 7919 + 17);
   int guard = 0;
   while (static_cast<int>(t.cones.size()) < cones && ++guard < 50 * cones) {
-    const Vec2 p(core::uniform(rng, centre.x() - half.x(), centre.x() + half.x()),
-                 core::uniform(rng, centre.y() - half.y(), centre.y() + half.y()));
+    // one draw a statement (argument order is the compiler's; this is gcc's)
+    const double y = core::uniform(rng, centre.y() - half.y(), centre.y() + half.y());
+    const Vec2 p(core::uniform(rng, centre.x() - half.x(), centre.x() + half.x()), y);
     const ConeClass cls = kClasses[rng() % 5];
     if (left.nearest(p).distance2 < 9.0 || right.nearest(p).distance2 < 9.0) continue;
     if (!occupied.free(p)) continue;
@@ -131,7 +132,8 @@ tracks::Track random_cones(int cones, uint64_t seed) {
   Occupancy occupied;
   int guard = 0;
   while (static_cast<int>(t.cones.size()) < cones && ++guard < 50 * cones) {
-    const Vec2 p(core::uniform(rng, 0.0, side), core::uniform(rng, 0.0, side));
+    const double y = core::uniform(rng, 0.0, side);  // before x: gcc's argument order
+    const Vec2 p(core::uniform(rng, 0.0, side), y);
     const ConeClass cls = kClasses[rng() % 5];
     if (!occupied.free(p)) continue;
     occupied.add(p);

@@ -385,7 +385,7 @@ class LayoutDrawer {
       add({straight(run_m - lead_m_ - braking_m, w)});
       if (!try_add(minimum_hairpin(wanted_turn(), w, braking_m))) return std::nullopt;
     } else {
-      add({straight(uniform(rng_, 32.0, 45.0), width())});
+      add({drawn_straight(32.0, 45.0)});
     }
 
     // primitives until the guide is nearly done, retrying a few draws when one runs into the
@@ -405,6 +405,14 @@ class LayoutDrawer {
   const std::vector<Sample>& laid() const { return laid_; }
   double lead_m() const { return lead_m_; }
   double width() { return narrowest() + uniform(rng_, 0.0, settings_.extra_width_m); }
+  // A straight of a drawn length and width. Every draw from the generator is a statement of its
+  // own: the order of a call's arguments is left to the compiler, and gcc and clang differ,
+  // which made the same seed give another track in each build. The orders written out here are
+  // the ones gcc used, so that the layouts made before stay as they were.
+  Piece drawn_straight(double min_length_m, double max_length_m) {
+    const double w = width();
+    return straight(uniform(rng_, min_length_m, max_length_m), w);
+  }
   double direction() const { return direction_; }
 
  private:
@@ -529,18 +537,19 @@ class LayoutDrawer {
       if (std::abs(wanted) < kMinHairpinWantedTurnRad)
         return {
             draw_turn(Feature::kCorner, kCornerMinRadiusM, kCornerMaxRadiusM, 45.0, 120.0, wanted)};
-      return minimum_hairpin(wanted, hairpin_width(), uniform(rng_, 8.0, 20.0));
+      const double leg_m = uniform(rng_, 8.0, 20.0);
+      return minimum_hairpin(wanted, hairpin_width(), leg_m);
     }
     std::vector<Piece> out;
-    if (!last_is_straight()) out.push_back(straight(uniform(rng_, 8.0, 20.0), width()));
+    if (!last_is_straight()) out.push_back(drawn_straight(8.0, 20.0));
     const double sign =
         std::abs(wanted) > kPi / 4 ? (wanted > 0 ? 1.0 : -1.0) : turn_sign(wanted, kPi);
     const double min_radius = std::max(
         kHairpinMinRadiusM, 0.5 * (params_.width_m + kExtraWidthM) + kHairpinMinInnerRadiusM);
     const double radius = uniform(rng_, min_radius, min_radius + kHairpinRadiusSpreadM);
-    out.push_back(
-        arc(Feature::kHairpin, radius, sign * uniform(rng_, 150.0, 200.0) * kDeg, width()));
-    out.push_back(straight(uniform(rng_, 6.0, 14.0), width()));
+    const double w = width();
+    out.push_back(arc(Feature::kHairpin, radius, sign * uniform(rng_, 150.0, 200.0) * kDeg, w));
+    out.push_back(drawn_straight(6.0, 14.0));
     return out;
   }
 
@@ -572,9 +581,9 @@ class LayoutDrawer {
                       w));
     const double between = uniform(rng_, 0.0, 5.0);
     if (between > 1.0) out.push_back({Feature::kChicane, false, between, 0.0, w});
-    out.push_back(arc(Feature::kChicane,
-                      uniform(rng_, p.chicane_min_radius_m, p.chicane_max_radius_m),
-                      -sign * angle * uniform(rng_, 0.7, 1.3), w));
+    const double scale = uniform(rng_, 0.7, 1.3);
+    const double radius = uniform(rng_, p.chicane_min_radius_m, p.chicane_max_radius_m);
+    out.push_back(arc(Feature::kChicane, radius, -sign * angle * scale, w));
     return out;
   }
 
@@ -582,7 +591,7 @@ class LayoutDrawer {
   // half-amplitude first and last half waves keep the heading centred on the row
   std::vector<Piece> draw_slalom() {
     std::vector<Piece> out;
-    if (!last_is_straight()) out.push_back(straight(uniform(rng_, 6.0, 12.0), width()));
+    if (!last_is_straight()) out.push_back(drawn_straight(6.0, 12.0));
     const int half_waves = 2 * static_cast<int>(uniform_int(rng_, settings_.slalom_min_pairs,
                                                             settings_.slalom_max_pairs));
     const double half_period = uniform(rng_, kSlalomMinHalfPeriodM, kSlalomMaxHalfPeriodM);
@@ -594,7 +603,7 @@ class LayoutDrawer {
       const double alternate = i % 2 == 0 ? sign : -sign;
       out.push_back({Feature::kSlalom, true, half_period, alternate * scale * peak, w});
     }
-    out.push_back(straight(uniform(rng_, 6.0, 12.0), width()));
+    out.push_back(drawn_straight(6.0, 12.0));
     return out;
   }
 
