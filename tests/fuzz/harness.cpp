@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <cstdlib>
 #include <exception>
 #include <filesystem>
 #include <fstream>
@@ -21,6 +22,11 @@ const fs::path& scratch_dir() {
   static const fs::path dir = [] {
     const fs::path d = fs::temp_directory_path() / ("conesim-fuzz-" + std::to_string(::getpid()));
     fs::create_directories(d);
+    // gone again when the fuzzer exits normally (after -runs or -max_total_time)
+    std::atexit([] {
+      std::error_code ec;
+      fs::remove_all(fs::temp_directory_path(ec) / ("conesim-fuzz-" + std::to_string(::getpid())), ec);
+    });
     return d;
   }();
   return dir;
