@@ -2,7 +2,11 @@
 
 #include <dlfcn.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <condition_variable>
 #include <cstring>
 #include <mutex>
@@ -263,10 +267,113 @@ bool PluginCallThread::abandoned() const {
   return state_->abandoned;
 }
 
+namespace {
+std::atomic<PluginHangHandler> hang_handler{nullptr};
+}  // namespace
+
+void set_plugin_hang_handler(PluginHangHandler handler) { hang_handler.store(handler); }
+
+struct PluginWatchdog::State {
+  std::string label;
+  double budget_ms = 0.0;
+  PluginHangHandler handler = nullptr;
+  // the call under way: when it started (steady clock, ns; -1 when none) and its name
+  std::atomic<int64_t> started_ns{-1};
+  std::atomic<const char*> what{""};
+  std::mutex mutex;
+  std::condition_variable wake;
+  bool stopping = false;
+
+  static int64_t now_ns() {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+  }
+
+  void loop() {
+    // a look a quarter budget apart (5 to 250 ms): a hang is seen between 2 and 2.25 budgets
+    // after its call began, and the watchdog wakes at most 200 times a wall second
+    const auto every = std::chrono::duration<double, std::milli>(std::clamp(budget_ms / 4.0, 5.0, 250.0));
+    const auto hang_ns = static_cast<int64_t>(2.0 * budget_ms * 1e6);
+    std::unique_lock<std::mutex> lock(mutex);
+    while (!stopping) {
+      wake.wait_for(lock, every);
+      if (stopping) return;
+      const int64_t started = started_ns.load();
+      if (started < 0) continue;
+      const int64_t running_ns = now_ns() - started;
+      if (running_ns < hang_ns) continue;
+      char buf[200];
+      std::snprintf(buf, sizeof(buf),
+                    " did not return from %s within its time budget of %.0f ms (still running "
+                    "after %.0f ms)",
+                    what.load(), budget_ms, running_ns / 1e6);
+      handler(label + buf);
+      std::_Exit(1);  // a handler must not return; if it did, the run's thread is stuck still
+    }
+  }
+};
+
+PluginWatchdog::PluginWatchdog(std::string label, double budget_ms, PluginHangHandler handler)
+    : state_(std::make_shared<State>()) {
+  state_->label = std::move(label);
+  state_->budget_ms = budget_ms;
+  state_->handler = handler;
+  thread_ = std::thread([state = state_] { state->loop(); });
+}
+
+PluginWatchdog::~PluginWatchdog() {
+  {
+    std::lock_guard<std::mutex> lock(state_->mutex);
+    state_->stopping = true;
+  }
+  state_->wake.notify_all();
+  thread_.join();
+}
+
+std::chrono::steady_clock::time_point PluginWatchdog::begin(const char* what) {
+  const auto now = std::chrono::steady_clock::now();
+  state_->what.store(what);
+  state_->started_ns.store(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(now.time_since_epoch()).count());
+  return now;
+}
+
+void PluginWatchdog::end() { state_->started_ns.store(-1); }
+
 PluginGuard::PluginGuard(const PluginSpec& spec)
-    : label_(spec.label()),
-      budget_ms_(spec.time_budget_ms),
-      thread_(std::make_unique<PluginCallThread>()) {}
+    : label_(spec.label()), budget_ms_(spec.time_budget_ms) {
+  if (PluginHangHandler handler = hang_handler.load())
+    watchdog_ = std::make_unique<PluginWatchdog>(label_, budget_ms_, handler);
+  else
+    thread_ = std::make_unique<PluginCallThread>();
+}
+
+void PluginGuard::check_returned_in_time(const char* what,
+                                         std::chrono::steady_clock::time_point started) const {
+  const double took_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started)
+          .count();
+  if (took_ms <= budget_ms_) return;
+  char buf[200];
+  std::snprintf(buf, sizeof(buf),
+                " did not return from %s within its time budget of %.0f ms (it took %.0f ms)",
+                what, budget_ms_, took_ms);
+  throw PluginFailure(label_ + buf);
+}
+
+void PluginGuard::rethrow_as_failure(const char* what, std::exception_ptr error) const {
+  try {
+    std::rethrow_exception(error);
+  } catch (const PluginFailure&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw PluginFailure(label_ + " threw in " + what + ": " + e.what());
+  } catch (...) {
+    throw PluginFailure(label_ + " threw in " + what +
+                        ": an exception that is not a std::exception");
+  }
+}
 
 void PluginGuard::run(const char* what, std::function<void()> job) const {
   if (thread_->abandoned())
@@ -288,17 +395,7 @@ void PluginGuard::run(const char* what, std::function<void()> job) const {
                   what, budget_ms_);
     throw PluginFailure(label_ + buf);
   }
-  if (!*error) return;
-  try {
-    std::rethrow_exception(*error);
-  } catch (const PluginFailure&) {
-    throw;
-  } catch (const std::exception& e) {
-    throw PluginFailure(label_ + " threw in " + what + ": " + e.what());
-  } catch (...) {
-    throw PluginFailure(label_ + " threw in " + what +
-                        ": an exception that is not a std::exception");
-  }
+  if (*error) rethrow_as_failure(what, *error);
 }
 
 sdk::Command GuardedDriver::update(const sdk::DriverInput& input) {

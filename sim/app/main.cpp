@@ -4,11 +4,13 @@
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
+#include "sim/autonomy.hpp"
 #include "sim/bench.hpp"
 #include "sim/compare.hpp"
 #include "sim/interrupt.hpp"
@@ -253,6 +255,27 @@ void add_track_commands(CLI::App& app, int& status) {
 }
 
 // `conesim run SCENARIO ...`
+// a plug-in's call that never returned (`conesim run` owns its process, so its plug-ins run on
+// the run's own thread under a watchdog): the folder says why it is incomplete, stderr gives the
+// DNF, and the process ends with a DNF's exit status. Set before the run, read on the
+// watchdog's thread.
+std::string hang_run_folder;
+
+[[noreturn]] void end_run_on_plugin_hang(const std::string& reason) {
+  const fs::path incomplete = fs::path(hang_run_folder) / conesim::sim::kIncompleteFile;
+  if (FILE* f = std::fopen(incomplete.c_str(), "w")) {
+    std::fprintf(f,
+                 "DNF: %s. The run was stopped there (a call that never returns cannot be "
+                 "abandoned inside the process) and wrote no metrics.json\n",
+                 reason.c_str());
+    std::fclose(f);
+  }
+  std::fprintf(stderr, "DNF (%s): %s has no metrics.json (see %s)\n", reason.c_str(),
+               hang_run_folder.c_str(), conesim::sim::kIncompleteFile);
+  std::fflush(stderr);
+  std::_Exit(1);
+}
+
 void add_run_command(CLI::App& app, int& status) {
   auto* cmd = app.add_subcommand("run", "Run one scenario in closed loop and score it");
   auto scenario = std::make_shared<std::string>();
@@ -329,6 +352,9 @@ void add_run_command(CLI::App& app, int& status) {
       if (!existed) fs::remove(options.out_dir, ec);
       throw;
     }
+    // plug-ins' calls run on the run's threads, watched; one that never returns ends the process
+    hang_run_folder = options.out_dir.string();
+    sim::set_plugin_hang_handler(end_run_on_plugin_hang);
     // the live progress line only on a terminal
     const bool tty = isatty(STDERR_FILENO);
     if (tty) {
