@@ -2,12 +2,14 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <memory>
 #include <numbers>
 #include <optional>
+#include <span>
 #include <tuple>
 #include <utility>
 
@@ -178,7 +180,7 @@ double project_on_line(const Line& line, const Vec2& p) {
 
 // least-squares circle (algebraic Kasa fit on centred coordinates) through points: centre and
 // radius, exact for points on a circle; nullopt when they are (nearly) collinear
-std::optional<std::pair<Vec2, double>> fit_circle(const std::vector<Vec2>& pts) {
+std::optional<std::pair<Vec2, double>> fit_circle(std::span<const Vec2> pts) {
   if (pts.size() < 3) return std::nullopt;
   Vec2 mean = Vec2::Zero();
   for (const Vec2& p : pts) mean += p;
@@ -677,6 +679,16 @@ std::vector<size_t> ring_members(const std::vector<Vec2>& pts, const PointIndex&
   return members;
 }
 
+// how many there are (ring_members().size(), without building the list)
+size_t count_ring_members(const std::vector<Vec2>& pts, const PointIndex& index,
+                          const std::vector<bool>& used, const Vec2& centre, double radius) {
+  size_t n = 0;
+  index.for_each_within(centre, radius + kRingBandM + 1e-9, [&](size_t i) {
+    if (!used[i] && std::abs((pts[i] - centre).norm() - radius) <= kRingBandM) ++n;
+  });
+  return n;
+}
+
 // rings of at least kRingMinCones cones, best first: seed circles through each triple of
 // nearby cones, keep the one with most cones, refit it to them, remove them, repeat
 std::vector<Ring> find_rings(const std::vector<Vec2>& pts, size_t max_rings) {
@@ -699,12 +711,15 @@ std::vector<Ring> find_rings(const std::vector<Vec2>& pts, size_t max_rings) {
           if (used[c] || (pts[c] - pts[a]).norm() > kRingSeedSpanM ||
               (pts[c] - pts[b]).norm() > kRingSeedSpanM)
             continue;
-          const auto circle = fit_circle({pts[a], pts[b], pts[c]});
+          const std::array<Vec2, 3> seed = {pts[a], pts[b], pts[c]};
+          const auto circle = fit_circle(seed);
           if (!circle || circle->second > 50.0) continue;
-          std::vector<size_t> members =
-              ring_members(pts, index, used, circle->first, circle->second);
-          if (members.size() > best.members.size())
-            best = {circle->first, circle->second, std::move(members)};
+          // counted first: most seeds lose, and listing their members cost an allocation each
+          if (count_ring_members(pts, index, used, circle->first, circle->second) <=
+              best.members.size())
+            continue;
+          best = {circle->first, circle->second,
+                  ring_members(pts, index, used, circle->first, circle->second)};
         }
       }
     }
