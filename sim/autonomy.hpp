@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -205,7 +206,9 @@ class PluginGuard {
   auto call(const char* what, F&& f) const {
     using Result = decltype(f());
     if (watchdog_) {
-      // on this thread, watched
+      // on this thread, watched; one call at a time, whichever thread makes it (a plug-in's
+      // object need not be thread-safe)
+      std::lock_guard<std::mutex> one_call(*call_mutex_);
       const auto started = watchdog_->begin(what);
       if constexpr (std::is_void_v<Result>) {
         try {
@@ -254,6 +257,7 @@ class PluginGuard {
   double budget_ms_;
   std::unique_ptr<PluginCallThread> thread_;
   std::unique_ptr<PluginWatchdog> watchdog_;
+  std::unique_ptr<std::mutex> call_mutex_ = std::make_unique<std::mutex>();
 };
 
 /// Keeps a plug-in's object and library for good when a call of it was left running.
