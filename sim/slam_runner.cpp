@@ -44,11 +44,8 @@ slam::BackendSettings lane_settings(const Scenario& s, const std::string& lane,
   settings.fastslam.min_range_m = view.min_range_m;
   settings.fastslam.max_range_m = view.max_range_m;
   settings.fastslam.fov_deg = view.fov_deg;
-  // a particle filter's random draws: from the scenario's seed and the lane's name (FNV-1a),
-  // so that two lanes of one run draw differently and a run repeats to the bit
-  std::uint64_t seed = 1469598103934665603ULL ^ s.seed;
-  for (const char c : lane) seed = (seed ^ static_cast<unsigned char>(c)) * 1099511628211ULL;
-  settings.fastslam.seed = seed;
+  // a particle filter's random draws: from the scenario's seed and the lane's name
+  settings.fastslam.seed = slam::lane_seed(s.seed, lane);
   if (!method)
     if (const auto it = s.slam_association.find(backend); it != s.slam_association.end())
       method = it->second;

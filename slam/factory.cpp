@@ -35,4 +35,10 @@ std::unique_ptr<Backend> make_backend(const std::string& name, const BackendSett
                               backend_list());
 }
 
+std::uint64_t lane_seed(std::uint64_t run_seed, const std::string& lane) {
+  std::uint64_t seed = 1469598103934665603ULL ^ run_seed;
+  for (const char c : lane) seed = (seed ^ static_cast<unsigned char>(c)) * 1099511628211ULL;
+  return seed;
+}
+
 }  // namespace conesim::slam

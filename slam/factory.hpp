@@ -2,6 +2,7 @@
 // Every SLAM back-end by name, behind the one Backend interface (docs/architecture.md, "Adding
 // a back-end"). The harness builds the driving back-end and the shadow ones here.
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -33,6 +34,10 @@ std::string backend_list();
 
 /// True for a known back-end name.
 bool is_backend(const std::string& name);
+
+/// The seed of a particle filter's random draws in a lane: from the run's seed and the lane's
+/// name (FNV-1a), so that two lanes of one run draw differently and a run repeats to the bit.
+std::uint64_t lane_seed(std::uint64_t run_seed, const std::string& lane);
 
 /// The back-end of that name with its settings; throws std::invalid_argument for an unknown
 /// name.

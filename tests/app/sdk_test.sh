@@ -7,7 +7,7 @@
 # with the DNF); the reference driver, GraphSLAM and the stereo and LiDAR
 # front-ends loaded as plug-ins give the built-in runs' metrics.
 # usage: sdk_test.sh CONESIM_BINARY BUILD_DIR SOURCE_DIR TEST_PLUGIN_DIR REFERENCE_DRIVER_SO
-#        GRAPH_SLAM_SO STEREO_PERCEPTION_SO LIDAR_PERCEPTION_SO
+#        GRAPH_SLAM_SO STEREO_PERCEPTION_SO LIDAR_PERCEPTION_SO SLAM_BACKENDS_SO
 set -uo pipefail
 bin="$(realpath "$1")"
 build="$(realpath "$2")"
@@ -17,6 +17,7 @@ reference="$(realpath "$5")"
 graph="$(realpath "$6")"
 stereo="$(realpath "$7")"
 lidar="$(realpath "$8")"
+backends="$(realpath "$9")"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 . "$(dirname "$0")/check_lib.sh"
@@ -210,6 +211,25 @@ expect_json graph_plugin_lane "$work/graph_plugin/metrics.json" "m['slam_driving
 compare_runs "$work/builtin/metrics.json" "$work/graph_plugin/metrics.json" graph plugin:graph \
   >"$work/graph_diff"
 expect_text graph_identical "$work/graph_diff" "^identical$"
+
+# 8b: EKF SLAM and FastSLAM 2.0 loaded as plug-ins (one library, `backend:` chooses) give the
+#     built-in lanes' figures and the same runs, to the bit (FastSLAM: its draws seeded as the
+#     built-in lane of its name seeds them)
+"$bin" run trackdrive-graphslam --no-plot --out "$work/ekf_builtin" --set slam=ekf >/dev/null 2>&1
+check ekf_as_plugin $? "$bin" run trackdrive-graphslam --no-plot --out "$work/ekf_plugin" \
+  --set "autonomy.slam={plugin: $backends, config: {backend: ekf}}"
+compare_runs "$work/ekf_builtin/metrics.json" "$work/ekf_plugin/metrics.json" ekf \
+  plugin:backends >"$work/ekf_diff"
+expect_text ekf_identical "$work/ekf_diff" "^identical$"
+"$bin" run trackdrive-graphslam --no-plot --out "$work/fs_builtin" --set slam=fastslam2 \
+  --set driver.trackdrive_laps=2 >/dev/null 2>&1
+check fastslam_as_plugin $? "$bin" run trackdrive-graphslam --no-plot --out "$work/fs_plugin" \
+  --set driver.trackdrive_laps=2 --set "autonomy.slam={plugin: $backends, config: {backend: fastslam2}}"
+compare_runs "$work/fs_builtin/metrics.json" "$work/fs_plugin/metrics.json" fastslam2 \
+  plugin:backends >"$work/fs_diff"
+expect_text fastslam_identical "$work/fs_diff" "^identical$"
+refused backends_unknown "autonomy\.slam\.config: slam plug-in 'backends' .* refused its configuration: backend: expected one of graph, ekf, fastslam1, fastslam2, odometry, got 'ukf'" \
+  trackdrive-graphslam --set "autonomy.slam={plugin: $backends, config: {backend: ukf}}"
 
 # 9: the stereo front-end (detector and tracker) loaded as a perception plug-in given the camera
 #    gives the built-in stereo run: the same frames to SLAM, scored the same
