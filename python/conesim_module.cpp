@@ -33,6 +33,7 @@
 #include "core/error.hpp"
 #include "python/observation.hpp"
 #include "sim/autonomy.hpp"
+#include "sim/json_text.hpp"
 #include "sim/regress.hpp"
 #include "sim/run.hpp"
 #include "sim/scenario.hpp"
@@ -511,7 +512,7 @@ class Sim {
     std::lock_guard<std::mutex> lock(channel_->mutex);
     if (!channel_->finished)
       throw py::value_error("metrics: the run has not ended (step until obs['done'], or close())");
-    return py::module_::import("json").attr("loads")(channel_->metrics.dump());
+    return py::module_::import("json").attr("loads")(conesim::sim::json_text(channel_->metrics));
   }
 
   // ends the run (a DNF if it had not ended) and writes its folder

@@ -14,6 +14,7 @@
 #include "sensors/pose_history.hpp"
 #include "sensors/stereo_camera.hpp"
 #include "sim/big_layouts.hpp"
+#include "sim/json_text.hpp"
 #include "sim/run.hpp"
 #include "sim/scenario.hpp"
 #include "sim/track_commands.hpp"
@@ -173,7 +174,7 @@ nlohmann::json bench_tracks(const std::vector<int>& cone_counts, int repeats,
       const double info_s = median_s([&] {
         const tracks::Track t = tracks::read_track(file);
         cones_read = static_cast<int>(t.cones.size());
-        sink << track_info(t, std::nullopt).dump();
+        sink << json_text(track_info(t, std::nullopt));
       });
       const double convert_s =
           median_s([&] { write_track_atomically(tracks::read_track(file), converted); });

@@ -13,6 +13,7 @@
 #include "core/files.hpp"
 #include "sim/gnuplot.hpp"
 #include "sim/interrupt.hpp"
+#include "sim/json_text.hpp"
 #include "sim/process_pool.hpp"
 #include "sim/regress.hpp"
 #include "sim/report.hpp"
@@ -796,7 +797,7 @@ std::string compare_markdown(const json& c) {
     md << "\n";
   }
   auto cell = [](const json& v) {
-    std::string s = v.is_string() ? v.get<std::string>() : v.dump();
+    std::string s = v.is_string() ? v.get<std::string>() : json_text(v);
     std::replace(s.begin(), s.end(), '|', '/');
     return s;
   };
@@ -849,7 +850,7 @@ std::string compare_html(const json& c) {
     h << "</ul>\n";
   }
   auto text = [](const json& v) {
-    return html_escape(v.is_string() ? v.get<std::string>() : v.dump());
+    return html_escape(v.is_string() ? v.get<std::string>() : json_text(v));
   };
   for (const std::string study : c["studies"]) {
     h << "<h2>" << html_escape(study) << "</h2>\n<table><tr><th>condition</th><th>conesim</th>"
@@ -955,7 +956,7 @@ int run_compare(const fs::path& self, const CompareOptions& o, std::ostream& out
   json c = compare_json(plan, results, o, wall_s);
   c["reused_runs"] = reused;
   if (o.plot) draw_figures(plan, results, o.out_dir, c["figures"], progress);
-  std::ofstream(o.out_dir / "compare.json") << c.dump(2) << "\n";
+  std::ofstream(o.out_dir / "compare.json") << json_text(c, 2) << "\n";
   std::ofstream(o.out_dir / "compare.md") << compare_markdown(c);
   std::ofstream(o.out_dir / "compare.html") << compare_html(c);
   const size_t failed = c["failed_runs"].size();

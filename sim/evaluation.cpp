@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "sim/gnuplot.hpp"
+#include "sim/json_text.hpp"
 
 namespace conesim::sim {
 
@@ -167,7 +168,7 @@ void PerceptionScorer::write_bands_plot(const std::filesystem::path& png) const 
   const std::string rmse_range = any_rmse ? "set yrange [0:*]\n" : "set yrange [0:1]\n";
   render_png(
       "set datafile missing 'nan'\nset grid\nset multiplot layout 2,1\n" + range +
-          "set title 'perception per " + nlohmann::json(band_m_).dump() +
+          "set title 'perception per " + json_text(nlohmann::json(band_m_)) +
           " m range band'\nset ylabel 'fraction'\nset yrange [0:1.05]\n"
           "set key bottom left\n"
           "plot $bands using 1:2 with linespoints lw 2 pt 7 lc rgb '#1f4fd8' title 'recall', "

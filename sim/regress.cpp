@@ -13,6 +13,7 @@
 #include "core/error.hpp"
 #include "core/files.hpp"
 #include "sim/interrupt.hpp"
+#include "sim/json_text.hpp"
 #include "sim/process_pool.hpp"
 #include "sim/report.hpp"
 #include "sim/run.hpp"
@@ -409,7 +410,7 @@ RunRow make_row(const RegressionRun& run, const json& m, int exit_code,
   r.event = text_or_empty(m, "event");
   r.passed = flag_or_false(m, "passed") && exit_code == 0;
   for (const json& f : section_or_empty(m, "pass_failures"))
-    r.reasons.push_back(f.is_string() ? f.get<std::string>() : f.dump());
+    r.reasons.push_back(f.is_string() ? f.get<std::string>() : json_text(f));
   if (flag_or_false(m, "passed") && exit_code != 0)
     r.reasons.push_back("exit " + std::to_string(exit_code) +
                         (log_tail.empty() ? "" : ": " + log_tail));
@@ -940,7 +941,7 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
                     " holds the runs of another command (runs.json differs): resume with the "
                     "same scenarios, tracks, seeds and --set values");
   }
-  std::ofstream(runs_file) << planned.dump(1) << "\n";
+  std::ofstream(runs_file) << json_text(planned, 1) << "\n";
 
   // a run's metrics.json, or null when it has none (or only a broken one)
   const auto read_metrics = [&](size_t i) {
@@ -1005,7 +1006,7 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
   sort_failures_first(rows);
   const BaselineComparison* c = comparison ? &*comparison : nullptr;
   std::ofstream(o.out_dir / "summary.json")
-      << summary_json(rows, plan, o, wall_s, c).dump(2) << "\n";
+      << json_text(summary_json(rows, plan, o, wall_s, c), 2) << "\n";
   std::ofstream(o.out_dir / "junit.xml") << junit_xml(rows, wall_s, c);
   std::ofstream(o.out_dir / "summary.html") << summary_html(rows, plan, o, wall_s, c);
   print_table(rows, out);

@@ -1,3 +1,4 @@
+#include "sim/json_text.hpp"
 #include "sim/report.hpp"
 
 #include <cmath>
@@ -53,7 +54,7 @@ std::string verdict_section(const json& m) {
   if (!failures.empty()) {
     h << "<ul class=\"failures\">\n";
     for (const json& f : failures)
-      h << "<li>" << html_escape(f.is_string() ? f.get<std::string>() : f.dump()) << "</li>\n";
+      h << "<li>" << html_escape(f.is_string() ? f.get<std::string>() : json_text(f)) << "</li>\n";
     h << "</ul>\n";
   }
   const std::string dnf = text(m, "dnf_reason");

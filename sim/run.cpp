@@ -21,6 +21,7 @@
 #include "laptime/qss.hpp"
 #include "sim/autonomy.hpp"
 #include "sim/interrupt.hpp"
+#include "sim/json_text.hpp"
 #include "sim/lap_time_report.hpp"
 #include "sim/report.hpp"
 #include "sim/slam_runner.hpp"
@@ -932,7 +933,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     trajectory_file.finish(shadow_poses);
   }
   tracks::write_eufs_csv(track, options.out_dir / "track.csv");
-  write_file_atomically(options.out_dir / "metrics.json", m.dump(2) + "\n");
+  write_file_atomically(options.out_dir / "metrics.json", json_text(m, 2) + "\n");
 
   // the pictures after the results: one that fails (no gnuplot) is a warning, the result stands
   auto picture = [&result](const std::string& what, const std::function<void()>& draw) {

@@ -12,6 +12,7 @@
 
 #include "sensors/png_writer.hpp"
 #include "sim/gnuplot.hpp"
+#include "sim/json_text.hpp"
 
 namespace conesim::sim {
 
@@ -460,7 +461,7 @@ void SensorRig::dump_sweep(int index, const sensors::LidarScan& scan,
     with_detections["detections"] = cones;
     with_detections["detections_stamp_us"] = detections->stamp;
   }
-  write_text(dir / frame_name(index, "json"), with_detections.dump(2) + "\n");
+  write_text(dir / frame_name(index, "json"), json_text(with_detections, 2) + "\n");
   if (dump_.lidar_png) {
     PlotData cones{"cones", {}}, ground{"ground", {}};
     for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
@@ -570,7 +571,7 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
                        {"depth_m", c.depth_m}});
     with_detections["detections"] = cones;
   }
-  write_text(dir / frame_name(index, "json"), with_detections.dump(2) + "\n");
+  write_text(dir / frame_name(index, "json"), json_text(with_detections, 2) + "\n");
 }
 
 void SensorRig::sense_cones(TimeUs t, const VehicleSim& car, const Referee& referee) {
@@ -595,7 +596,7 @@ void SensorRig::sense_cones(TimeUs t, const VehicleSim& car, const Referee& refe
                                   {"true_vehicle_pose", pose2_json(pose)},
                                   {"frame", "vehicle (rear axle centre), x forward, y left"},
                                   {"cones", cones}};
-    write_text(run_dir_ / "images/detections" / frame_name(index, "json"), frame.dump(1) + "\n");
+    write_text(run_dir_ / "images/detections" / frame_name(index, "json"), json_text(frame, 1) + "\n");
   }
   enqueue(t + cone_latency_us_, {std::move(obs), std::move(labels), pose}, 2);
 }

@@ -11,6 +11,7 @@
 
 #include "core/error.hpp"
 #include "sim/gnuplot.hpp"
+#include "sim/json_text.hpp"
 #include "tracks/fsg_layouts.hpp"
 #include "tracks/generator.hpp"
 #include "tracks/io.hpp"
@@ -168,7 +169,7 @@ int track_corpus(const CorpusOptions& options, std::ostream& out, std::ostream& 
   const fs::path partial = options.out_dir / ".partial-index.json";
   {
     std::ofstream f(partial);
-    f << index.dump(2) << "\n";
+    f << json_text(index, 2) << "\n";
     if (!f) throw std::runtime_error(partial.string() + ": cannot write");
   }
   fs::rename(partial, index_file);

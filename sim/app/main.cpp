@@ -14,6 +14,7 @@
 #include "sim/bench.hpp"
 #include "sim/compare.hpp"
 #include "sim/interrupt.hpp"
+#include "sim/json_text.hpp"
 #include "sim/regress.hpp"
 #include "sim/run.hpp"
 #include "sim/scenario.hpp"
@@ -108,7 +109,7 @@ void add_track_commands(CLI::App& app, int& status) {
     add_event_option(cmd, *event, "Check the rules of this event (default: recognised)");
     cmd->callback([=] {
       const auto t = conesim::tracks::read_track(*file);
-      std::cout << conesim::sim::track_info(t, parse_event(*event)).dump(2) << "\n";
+      std::cout << conesim::sim::json_text(conesim::sim::track_info(t, parse_event(*event)), 2) << "\n";
     });
   }
 
@@ -218,7 +219,7 @@ void add_track_commands(CLI::App& app, int& status) {
       options.grip_fraction = *grip;
       options.event = parse_event(*event);
       const auto bound = conesim::laptime::lap_time_bound(t, v, options);
-      std::cout << conesim::sim::lap_time_json(t, bound, v, *grip).dump(2) << "\n";
+      std::cout << conesim::sim::json_text(conesim::sim::lap_time_json(t, bound, v, *grip), 2) << "\n";
       if (!csv->empty() && bound.usable) conesim::sim::write_speed_profile_csv(bound, *csv);
       if (!bound.usable) status = 1;
     });
@@ -541,7 +542,7 @@ void add_vehicle_commands(CLI::App& app) {
                         {"right_wheel_rad", w.right_rad},
                         {"turn_radius_m",
                          std::isfinite(radius) ? nlohmann::json(radius) : nlohmann::json(nullptr)}};
-    std::cout << j.dump(2) << "\n";
+    std::cout << conesim::sim::json_text(j, 2) << "\n";
   });
 }
 
@@ -559,7 +560,7 @@ void add_bench_commands(CLI::App& app) {
       ->check(CLI::Range(1, 1000));
   cmd->add_flag("--no-closed-loop", *no_loop, "Skip the closed-loop runs");
   cmd->callback(
-      [=] { std::cout << conesim::sim::bench_sensors(*repeats, !*no_loop).dump(2) << "\n"; });
+      [=] { std::cout << conesim::sim::json_text(conesim::sim::bench_sensors(*repeats, !*no_loop), 2) << "\n"; });
 
   auto* tracks_cmd = bench->add_subcommand(
       "tracks",
@@ -575,7 +576,7 @@ void add_bench_commands(CLI::App& app) {
       ->check(CLI::Range(1, 100));
   tracks_cmd->add_option("--keep", *keep, "Write the layouts into this folder and keep them");
   tracks_cmd->callback([=] {
-    std::cout << conesim::sim::bench_tracks(*counts, *track_repeats, *keep).dump(2) << "\n";
+    std::cout << conesim::sim::json_text(conesim::sim::bench_tracks(*counts, *track_repeats, *keep), 2) << "\n";
   });
   // `conesim bench soak`: many laps in one process, memory and SLAM update time lap by lap
   auto* soak = bench->add_subcommand(
@@ -587,7 +588,7 @@ void add_bench_commands(CLI::App& app) {
   soak->add_option("--laps", options->laps, "Laps to drive")->check(CLI::Range(20, 1000));
   soak->add_option("--seed", options->seed, "The scenario seed");
   soak->add_option("--set", options->sets, "key.path=value, as for conesim run");
-  soak->callback([=] { std::cout << conesim::sim::bench_soak(*options).dump(2) << "\n"; });
+  soak->callback([=] { std::cout << conesim::sim::json_text(conesim::sim::bench_soak(*options), 2) << "\n"; });
 }
 
 }  // namespace

@@ -35,6 +35,14 @@ expect_text validate_empty "$work/err" 'empty\.csv'
 check validate_missing 2 "$bin" track validate "$work/does-not-exist.yaml"
 expect_text validate_missing "$work/err" 'does-not-exist\.yaml'
 check info_malformed 2 "$bin" track info "$work/nan.csv"
+# a file name in another encoding (Latin-1 "Großer.yaml": not UTF-8) and a key with bytes that
+# are not text: the JSON output carries them as U+FFFD, rather than the command failing
+latin1="$work/Gro$(printf '\337')er.yaml"
+cp "$data/tracks/fssim/FSG.yaml" "$latin1"
+printf '\377\377key: 1\n' >>"$latin1"
+check info_latin1 0 "$bin" track info "$latin1" &&
+  python3 -c "import json,sys; j=json.load(open(sys.argv[1])); assert j['name'] == 'Gro\ufffder', j['name']" \
+    "$work/out" || { echo "FAIL info_latin1: not valid JSON with the name Gro?er"; failures=$((failures + 1)); }
 
 # generate, validate strictly, info, convert and plot
 check generate 0 "$bin" track generate --event trackdrive --seed 7 --out "$work/gen.csv"
