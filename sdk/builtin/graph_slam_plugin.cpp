@@ -11,6 +11,7 @@
 // (slam.graph: of a scenario).
 
 #include <conesim/sdk.hpp>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -21,9 +22,6 @@
 namespace {
 
 using namespace conesim;
-
-using sdk_bridge::from_sdk;
-using sdk_bridge::to_sdk;
 
 slam::GraphSlamConfig read_config(const sdk::Config& config) {
   static const char* const kKnown[] = {"sensor_x_m",
@@ -59,42 +57,10 @@ slam::GraphSlamConfig read_config(const sdk::Config& config) {
   return c;
 }
 
-class GraphSlamPlugin final : public sdk::Slam {
+class GraphSlamPlugin final : public sdk_bridge::BackendSlam {
  public:
-  GraphSlamPlugin(const sdk::RunInfo&, const sdk::Config& config) : graph_(read_config(config)) {}
-
-  void reset(const sdk::Pose2& start, sdk::TimeUs stamp_us,
-             sdk::Span<sdk::MapCone> prior_map) override {
-    graph_.reset(from_sdk(start), stamp_us);
-    if (prior_map.empty()) return;
-    std::vector<core::MapCone> map;
-    for (const sdk::MapCone& c : prior_map) map.push_back(from_sdk(c));
-    graph_.set_prior_map(map);
-  }
-
-  void process(const sdk::SlamInput& in) override {
-    graph_.process({from_sdk(in.odometry), from_sdk(in.observations), {}});
-    // what it did with each observation, and the landmarks the new ones started
-    codes_.clear();
-    started_.clear();
-    for (const slam::Association& a : graph_.last_associations()) {
-      codes_.push_back(a.code());
-      started_.push_back(a.kind == slam::Association::Kind::kNew ? a.landmark_id : -1);
-    }
-  }
-
-  sdk::Estimate estimate() const override { return to_sdk(graph_.estimate(), map_); }
-  sdk::Span<int32_t> associations() const override { return {codes_.data(), codes_.size()}; }
-  sdk::Span<int32_t> new_landmark_ids() const override {
-    return {started_.data(), started_.size()};
-  }
-  int32_t loop_closures() const override { return graph_.loop_closures(); }
-
- private:
-  slam::GraphSlam graph_;
-  std::vector<int32_t> codes_;
-  std::vector<int32_t> started_;
-  mutable std::vector<sdk::MapCone> map_;
+  GraphSlamPlugin(const sdk::RunInfo&, const sdk::Config& config)
+      : BackendSlam(std::make_unique<slam::GraphSlam>(read_config(config))) {}
 };
 
 }  // namespace

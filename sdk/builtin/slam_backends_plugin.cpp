@@ -27,9 +27,6 @@ namespace {
 
 using namespace conesim;
 
-using sdk_bridge::from_sdk;
-using sdk_bridge::to_sdk;
-
 std::unique_ptr<slam::Backend> make(const sdk::RunInfo& run, const sdk::Config& config) {
   static const char* const kKnown[] = {"backend",  "sensor_x_m", "min_range_m", "max_range_m",
                                        "fov_deg",  "association", "seed",        nullptr};
@@ -83,43 +80,10 @@ std::unique_ptr<slam::Backend> make(const sdk::RunInfo& run, const sdk::Config& 
   return slam::make_backend(backend, s);
 }
 
-class BackendsPlugin final : public sdk::Slam {
+class BackendsPlugin final : public sdk_bridge::BackendSlam {
  public:
   BackendsPlugin(const sdk::RunInfo& run, const sdk::Config& config)
-      : backend_(make(run, config)) {}
-
-  void reset(const sdk::Pose2& start, sdk::TimeUs stamp_us,
-             sdk::Span<sdk::MapCone> prior_map) override {
-    backend_->reset(from_sdk(start), stamp_us);
-    if (prior_map.empty()) return;
-    std::vector<core::MapCone> map;
-    for (const sdk::MapCone& c : prior_map) map.push_back(from_sdk(c));
-    backend_->set_prior_map(map);
-  }
-
-  void process(const sdk::SlamInput& in) override {
-    backend_->process({from_sdk(in.odometry), from_sdk(in.observations), {}});
-    // what it did with each observation, and the landmarks the new ones started
-    codes_.clear();
-    started_.clear();
-    for (const slam::Association& a : backend_->last_associations()) {
-      codes_.push_back(a.code());
-      started_.push_back(a.kind == slam::Association::Kind::kNew ? a.landmark_id : -1);
-    }
-  }
-
-  sdk::Estimate estimate() const override { return to_sdk(backend_->estimate(), map_); }
-  sdk::Span<int32_t> associations() const override { return {codes_.data(), codes_.size()}; }
-  sdk::Span<int32_t> new_landmark_ids() const override {
-    return {started_.data(), started_.size()};
-  }
-  int32_t loop_closures() const override { return backend_->loop_closures(); }
-
- private:
-  std::unique_ptr<slam::Backend> backend_;
-  std::vector<int32_t> codes_;
-  std::vector<int32_t> started_;
-  mutable std::vector<sdk::MapCone> map_;
+      : BackendSlam(make(run, config)) {}
 };
 
 }  // namespace
