@@ -58,6 +58,12 @@ constexpr double kCurvatureSpanM = 1.0;
 constexpr double kJoinMinM = 10.0;
 constexpr double kJoinS = 2.0;
 constexpr double kJoinPastM = 2.0;
+// the racing line is planned again once a cone of the map it was planned from has moved this
+// far (checked this often), and the car joins the new one over this time at its speed, metres
+// and seconds
+constexpr double kReplanMapMoveM = 0.05;
+constexpr double kReplanCheckS = 0.5;
+constexpr double kReplanJoinS = 1.0;
 // the car switches to the racing line where its lap-1 path comes this close to it and this
 // nearly parallel, or after this distance at the latest, metres and radians
 constexpr double kJoinCloseM = 0.2;
@@ -220,6 +226,10 @@ struct Driver::Impl {
   std::optional<double> join_until_m;
   // the odometer reading when lap 1 ended, while the car has yet to reach the racing line
   std::optional<double> join_pending_since_m;
+  // the map the racing line was planned from (id and position), and when it was last compared
+  // with the estimate's
+  std::vector<std::pair<int, Vec2>> line_map;
+  core::TimeUs line_map_checked = 0;
   SpeedProfile profile;
   double lap_m = 0.0;
   size_t progress_segment = 0;
@@ -232,6 +242,8 @@ struct Driver::Impl {
   std::optional<double> run_out_until_m;
   std::vector<Vec2> trace;
   std::optional<size_t> trace_lap_start;
+  // the trace of lap 1 alone, taken when lap 1 ended
+  std::vector<Vec2> lap_trace;
 
   // skidpad lap ends; acceleration finish line (along the start heading)
   std::vector<double> skidpad_lap_end_s;
@@ -596,6 +608,7 @@ struct Driver::Impl {
         status.path = path.points;
       }
     }
+    if (phase == Phase::kFast || join_pending_since_m) replan_if_map_moved(est);
     if (phase == Phase::kExplore && join_pending_since_m) join_line(est);
     // past the join: the racing line itself (the same points from there on)
     if (join_until_m && status.odometer_m >= *join_until_m) {
@@ -674,19 +687,76 @@ struct Driver::Impl {
     }
     if (phase != Phase::kExplore) return;
 
-    // the whole circuit from the map, else the trace of lap 1
+    if (!plan_fast_laps(est)) return;  // keep exploring
+    // the car goes on along its lap-1 path until it is near the racing line (see join_line)
+    join_pending_since_m = status.odometer_m;
+  }
+
+  // the racing line and its caps from the map now (the whole circuit from the map, else the
+  // trace of lap 1); false when neither gives a circuit
+  bool plan_fast_laps(const core::Estimate& est) {
     std::optional<Path> circuit = plan_circuit(est.map, start, planner);
-    if (!circuit && trace_lap_start && trace.size() > *trace_lap_start + 20) {
-      std::vector<Vec2> lap(trace.begin() + static_cast<long>(*trace_lap_start), trace.end());
-      lap = smooth(resample(lap, 1.0, true), 3, true);
+    // lap 1's trace ends where lap 1 did (the car goes on tracing until it joins the line)
+    if (lap_trace.empty() && trace_lap_start && trace.size() > *trace_lap_start + 20)
+      lap_trace.assign(trace.begin() + static_cast<long>(*trace_lap_start), trace.end());
+    if (!circuit && !lap_trace.empty()) {
+      const std::vector<Vec2> lap = smooth(resample(lap_trace, 1.0, true), 3, true);
       circuit = Path{resample(lap, 1.0, true), true};
     }
-    if (!circuit) return;  // keep exploring
-    // the car goes on along its lap-1 path until it is near the racing line (see join_line)
+    if (!circuit) return false;
     Boundaries sides;
     racing_line = fast_line(*circuit, est.map, start, &sides);
     racing_line_caps = narrow_lane_caps(racing_line, sides, est.map);
-    join_pending_since_m = status.odometer_m;
+    line_map.clear();
+    for (const MapCone& cone : est.map) line_map.emplace_back(cone.id, cone.position);
+    std::sort(line_map.begin(), line_map.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    line_map_checked = est.stamp;
+    return true;
+  }
+
+  // the largest move of a map cone since the racing line was planned from the map, metres
+  double map_moved_since_line(const std::vector<MapCone>& map) const {
+    double moved = 0.0;
+    for (const MapCone& cone : map) {
+      const auto it = std::lower_bound(line_map.begin(), line_map.end(), cone.id,
+                                       [](const auto& e, int id) { return e.first < id; });
+      if (it != line_map.end() && it->first == cone.id)
+        moved = std::max(moved, (cone.position - it->second).norm());
+    }
+    return moved;
+  }
+
+  // SLAM may move the map after the racing line was planned from it (GraphSLAM's loop closure
+  // lands a few metres after lap 1 ends and shifts cones by up to a few decimetres; a filter
+  // keeps correcting its map): the car would localise on the corrected map and follow a line
+  // laid between the old cones. Once a cone has moved kReplanMapMoveM, the line is planned
+  // again from the map now and the car joins it over a short distance.
+  void replan_if_map_moved(const core::Estimate& est) {
+    if (line_map.empty() || est.stamp - line_map_checked < core::from_seconds(kReplanCheckS))
+      return;
+    line_map_checked = est.stamp;
+    if (map_moved_since_line(est.map) < kReplanMapMoveM) return;
+    if (!plan_fast_laps(est)) return;
+    ++status.line_replans;
+    if (phase != Phase::kFast) return;  // join_line picks the new line up
+    const PathProjection at =
+        project_onto(racing_line, est.pose.position(), 0, racing_line.segment_count());
+    join_racing_line(est, at, std::max(kJoinMinM, kReplanJoinS * std::max(0.0, est.speed_mps)));
+  }
+
+  // the path onto the racing line from where the car is (projected at `at`) over join_m, and
+  // the line's speed profile (the join curves the path by a few thousandths of 1/m ahead of the
+  // car, and more behind it, where the car will not be before the join ends)
+  void join_racing_line(const core::Estimate& est, const PathProjection& at, double join_m) {
+    path = join_from(racing_line, est.pose.position(), at, join_m);
+    join_until_m = status.odometer_m + join_m + kJoinPastM;
+    profile = plan_speed(racing_line, limits(params.fast_speed_mps), std::nullopt, std::nullopt,
+                         racing_line_caps);
+    lap_m = racing_line.length();
+    track_progress = true;
+    progress_segment = at.segment;
+    status.path = path.points;
   }
 
   // after lap 1 the car is on its lap-1 path, off the racing line: it switches to the line where
@@ -701,17 +771,7 @@ struct Driver::Impl {
     const bool meet = at.distance_m <= kJoinCloseM && std::abs(heading_error) <= kJoinHeadingRad;
     if (!meet && status.odometer_m - *join_pending_since_m < kJoinWaitM) return;
     join_pending_since_m.reset();
-    const double join_m = std::max(kJoinMinM, kJoinS * std::max(0.0, est.speed_mps));
-    path = join_from(racing_line, est.pose.position(), at, join_m);
-    join_until_m = status.odometer_m + join_m + kJoinPastM;
-    // the speed profile is the line's (the join curves the path by a few thousandths of 1/m
-    // ahead of the car, and more behind it, where the car will not be before the join ends)
-    profile = plan_speed(racing_line, limits(params.fast_speed_mps), std::nullopt, std::nullopt,
-                         racing_line_caps);
-    lap_m = racing_line.length();
-    track_progress = true;
-    progress_segment = at.segment;
-    status.path = path.points;
+    join_racing_line(est, at, std::max(kJoinMinM, kJoinS * std::max(0.0, est.speed_mps)));
     phase = Phase::kFast;
   }
 };

@@ -109,6 +109,8 @@ struct DriverStatus {
   /// Why the driver cannot go on as planned (e.g. "no path through the cones ahead"); empty
   /// while all is well. The run appends it to a DNF reason.
   std::string problem;
+  /// Times the racing line was planned again because the map moved under it (a loop closure).
+  int line_replans = 0;
 };
 
 /// Acceleration: how far past the finish line the front of the car comes to rest at most when

@@ -47,6 +47,9 @@ struct LoopParams {
   /// Yaw rate over the kinematic one at a steering angle (the MuJoCo car's anti-Ackermann
   /// loss, as the driver knows it); empty: kinematic.
   std::vector<std::pair<double, double>> yaw_gain = VehicleGeometry{}.yaw_gain;
+  /// An error of the estimate's map: the offset (track frame, metres) of the cone at this true
+  /// position at this time, as a SLAM map before its loop closure has it; empty: none.
+  std::function<Vec2(double, const Vec2&)> map_error;
   /// Give up after this much simulated time, seconds.
   double max_time_s = 600.0;
   /// Called after each driver update with the time, the true pose and the driver's status
@@ -161,6 +164,11 @@ inline LoopResult run_loop(const tracks::Track& track, core::EventType event,
       in.estimate.speed_mps = v;
       in.estimate.yaw_rate_rps = vehicle_models::bicycle_yaw_rate(v, steer, vehicle.wheelbase_m);
       in.estimate.map = map;
+      if (loop.map_error)
+        for (core::MapCone& c : in.estimate.map) {
+          const Vec2 truth = map_origin.transform(c.position);
+          c.position = map_origin.inverse_transform(truth + loop.map_error(t, truth));
+        }
       cmd = driver.update(in);
       if (loop.on_update) loop.on_update(t, pose, driver.status());
       result.laps_counted = driver.status().laps_counted;
