@@ -25,6 +25,13 @@ constexpr double kPinWeight = 1e8;
 // hard-profile trackdrives driven from GraphSLAM (seed 5000 on): 16 hit a cone pinned hard, 9, 8
 // and 9 at weights 1, 0.3 and 0.1; ground truth clean on all of them either way
 constexpr double kSoftPinWeight = 0.3;
+// an open corridor starts where the car is: its first this many points hold offset 0 exactly
+constexpr size_t kOpenStartPoints = 2;
+
+// whether point i is one of an open corridor's held start points
+bool held_start(const Corridor& c, size_t i) {
+  return !c.closed && i < kOpenStartPoints;
+}
 // the active-set loop gives up after this many solves (it keeps the last feasible line)
 constexpr int kMaxActiveSetRounds = 60;
 // the footprint check narrows the corridor and plans again at most this many times
@@ -110,8 +117,8 @@ std::vector<double> least_curvature_offsets(const Corridor& c, const std::vector
     for (size_t i = 0; i < n; ++i) {
       if (active[i] == 0) continue;
       const double target = active[i] == -1 ? lo[i] : active[i] == 1 ? hi[i] : pin[i];
-      // an open corridor's first two points (where the car is) stay pinned hard
-      const bool soft = active[i] == 2 && (c.closed || i >= 2);
+      // an open corridor's start (where the car is) stays pinned hard
+      const bool soft = active[i] == 2 && !held_start(c, i);
       const double w = soft ? kSoftPinWeight : kPinWeight;
       hp.coeffRef(static_cast<long>(i), static_cast<long>(i)) += w;
       rhs[static_cast<long>(i)] += w * target;
@@ -232,7 +239,8 @@ RacingLine plan_racing_line(const Corridor& c, const std::vector<MapCone>& cones
     }
   }
   // an open path starts where the car is, heading along the reference line
-  if (!c.closed) lo[0] = hi[0] = lo[1] = hi[1] = 0.0;
+  for (size_t i = 0; i < n; ++i)
+    if (held_start(c, i)) lo[i] = hi[i] = 0.0;
 
   // plan, check the footprint along the line, narrow the corridor where it comes too close
   std::vector<Vec2> pts(n);
@@ -258,7 +266,7 @@ RacingLine plan_racing_line(const Corridor& c, const std::vector<MapCone>& cones
       // following a step of the bound
       for (int k = -kNarrowHalfWindow; k <= kNarrowHalfWindow; ++k) {
         const size_t j = neighbour(i, k, n, c.closed);
-        if (!c.closed && j < 2) continue;
+        if (held_start(c, j)) continue;
         if (lo[j] >= hi[j]) continue;  // no room left to give
         const double share = 1.0 - static_cast<double>(std::abs(k)) / (kNarrowHalfWindow + 1);
         (cone_left ? hi[j] : lo[j]) += (cone_left ? -cut : cut) * share;
