@@ -148,7 +148,8 @@ nlohmann::json bench_tracks(const std::vector<int>& cone_counts, int repeats,
   fs::create_directories(dir);
   nlohmann::json out = {{"unit", "seconds, median of repeats"}, {"repeats", repeats}};
   nlohmann::json rows = nlohmann::json::array();
-  for (BigLayout kind : {BigLayout::kClutter, BigLayout::kLong, BigLayout::kRandom}) {
+  for (BigLayout kind :
+       {BigLayout::kClutter, BigLayout::kLong, BigLayout::kRandom, BigLayout::kOutlier}) {
     for (int n : cone_counts) {
       // the layout as a file, as a user hands it in
       const tracks::Track made = big_layout(kind, n, 1);

@@ -80,6 +80,10 @@ tracks::Track clutter(int cones, uint64_t seed) {
   return t;
 }
 
+// how far the outlier lies from the rest, along x and along y, metres (a row in UTM among
+// local coordinates, within the readers' bound of 1e7 m)
+constexpr double kOutlierM = 1e6;
+
 // a long winding circuit: a circle with a wave on its radius, lanes 3.5 m apart
 tracks::Track long_circuit(int cones, uint64_t seed) {
   tracks::Track t;
@@ -142,6 +146,16 @@ tracks::Track random_cones(int cones, uint64_t seed) {
   return t;
 }
 
+// the long circuit and one cone far from it
+tracks::Track with_outlier(int cones, uint64_t seed) {
+  tracks::Track t = long_circuit(std::max(1, cones - 1), seed);
+  t.name = "outlier-" + std::to_string(cones);
+  Vec2 hi = t.cones.front().position;
+  for (const tracks::Cone& c : t.cones) hi = hi.cwiseMax(c.position);
+  add_cone(t, ConeClass::kUnknown, hi + Vec2(kOutlierM, kOutlierM));
+  return t;
+}
+
 }  // namespace
 
 const char* to_string(BigLayout kind) {
@@ -152,6 +166,8 @@ const char* to_string(BigLayout kind) {
       return "long";
     case BigLayout::kRandom:
       return "random";
+    case BigLayout::kOutlier:
+      return "outlier";
   }
   return "?";
 }
@@ -164,6 +180,8 @@ tracks::Track big_layout(BigLayout kind, int cones, uint64_t seed) {
       return long_circuit(cones, seed);
     case BigLayout::kRandom:
       return random_cones(cones, seed);
+    case BigLayout::kOutlier:
+      return with_outlier(cones, seed);
   }
   return {};
 }

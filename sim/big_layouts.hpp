@@ -20,9 +20,12 @@ enum class BigLayout {
   kLong,
   /// Cones of random classes strewn uniformly, one per 25 m^2 (no lanes given).
   kRandom,
+  /// The long circuit with one more cone (class unknown) 1000 km from it along x and y: a stray
+  /// row in a file, which must not coarsen what the rest of the layout costs.
+  kOutlier,
 };
 
-/// "clutter", "long", "random".
+/// "clutter", "long", "random", "outlier".
 const char* to_string(BigLayout kind);
 
 /// A layout of about `cones` cones of the kind, the same for the same seed. Ids are the

@@ -58,22 +58,10 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-// a grid cell about as wide as the mean spacing of the points (their box shared out)
-double typical_cell_m(const std::vector<Vec2>& pts) {
-  if (pts.size() < 2) return 1.0;
-  Vec2 lo = pts.front(), hi = pts.front();
-  for (const Vec2& p : pts) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  const double area = std::max((hi - lo).x(), 1.0) * std::max((hi - lo).y(), 1.0);
-  return std::max(0.5, std::sqrt(area / static_cast<double>(pts.size())));
-}
-
 // median distance from each point to its nearest neighbour
 double median_neighbour_distance(const std::vector<Vec2>& pts) {
   std::vector<double> nn;
-  const PointIndex index(pts, typical_cell_m(pts));
+  const PointIndex index(pts);
   for (size_t i = 0; i < pts.size(); ++i) {
     const size_t j = index.nearest(pts[i], [i](size_t k) { return k != i; });
     if (j != PointIndex::kNone) nn.push_back((pts[i] - pts[j]).norm());
@@ -242,7 +230,7 @@ void extend_with_orange(const Track& track, std::vector<int>& lane,
   const std::vector<Vec2> pool = positions(track, pool_ids);
   const std::vector<Vec2> lane_pts = positions(track, lane);
   const WalkLimits limits{step_limit(lane_pts), kMaxExtendTurnRad};
-  const PointIndex index(pool, limits.max_step_m);
+  const PointIndex index(pool);
 
   // forward from the last cone
   const size_t n = lane_pts.size();
@@ -325,7 +313,7 @@ std::vector<int> order_lane(const Track& track, const std::vector<int>& cone_ids
   // walk forward from the cone nearest the start, then backward from it for cones behind
   std::vector<bool> used(pts.size(), false);
   const WalkLimits limits{step_limit(pts), kMaxTurnRad};
-  const PointIndex index(pts, limits.max_step_m);
+  const PointIndex index(pts);
   const size_t first = nearest_index(pts, track.start.position());
   used[first] = true;
   const std::vector<size_t> ahead =
@@ -454,7 +442,7 @@ class AcrossTrack {
   static std::optional<Vec2> nearest(const std::vector<Vec2>& pts, std::optional<PointIndex>& index,
                                      const Vec2& p) {
     if (pts.empty()) return std::nullopt;
-    if (!index) index.emplace(pts, typical_cell_m(pts));
+    if (!index) index.emplace(pts);
     return pts[index->nearest(p, [](size_t) { return true; })];
   }
 
@@ -495,7 +483,7 @@ std::vector<Gate> gates_from_big_orange(const Track& track) {
   const std::vector<Vec2> pts = positions(track, ids);
   std::vector<int> group(pts.size(), -1);
   int groups = 0;
-  const PointIndex index(pts, kGateGroupRadiusM);
+  const PointIndex index(pts);
   for (size_t seed = 0; seed < pts.size(); ++seed) {
     if (group[seed] >= 0) continue;
     std::vector<size_t> stack{seed};

@@ -466,7 +466,7 @@ void check_crossings(const Track& track, const Lanes& lanes, std::vector<Violati
     return std::pair{shown_id(track, lane[i]), shown_id(track, lane[(i + 1) % lane.size()])};
   };
 
-  // left against right: each segment against those of the other lane near it (a grid of the
+  // left against right: each segment against those of the other lane near it (an index of the
   // segments: linear in the cones rather than quadratic)
   const PolylineIndex left_index(lanes.left, lanes.closed), right_index(lanes.right, lanes.closed);
   const auto box_lo = [](const Vec2& a, const Vec2& b) { return Vec2(a.cwiseMin(b)); };
@@ -694,8 +694,8 @@ size_t count_ring_members(const std::vector<Vec2>& pts, const PointIndex& index,
 std::vector<Ring> find_rings(const std::vector<Vec2>& pts, size_t max_rings) {
   std::vector<Ring> rings;
   std::vector<bool> used(pts.size(), false);
-  // the seeds' neighbours and the members from a grid (the points within a span of a seed)
-  const PointIndex index(pts, kRingSeedSpanM);
+  // the seeds' neighbours and the members from an index (the points within a span of a seed)
+  const PointIndex index(pts);
   std::vector<std::vector<size_t>> near_of(pts.size());
   for (size_t a = 0; a < pts.size(); ++a)
     near_of[a] = index.within(pts[a], kRingSeedSpanM * (1.0 + 1e-9));

@@ -1,55 +1,76 @@
 #include "tracks/spatial_index.hpp"
 
 #include <algorithm>
-#include <cmath>
+#include <stdexcept>
 
 namespace conesim::tracks {
 
 namespace {
 
-// a segment listed in more cells than this is kept apart and considered for every query
-constexpr int64_t kMaxCellsPerSegment = 64;
-
-// the box of some points
-std::pair<Vec2, Vec2> box_of(const std::vector<Vec2>& pts) {
-  Vec2 lo = pts.front(), hi = pts.front();
-  for (const Vec2& p : pts) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  return {lo, hi};
-}
+// items in a leaf at most: a few distance checks cost less than another level of boxes
+constexpr uint32_t kLeafItems = 8;
 
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
-// the grid
+// the tree
 
-void CellGrid::shape(const Vec2& lo, const Vec2& hi, double cell_m, size_t items) {
-  // at most a few cells per item: larger cells over a large box
-  const double max_cells = std::max(4.0 * static_cast<double>(items), 4096.0);
-  const Vec2 size = hi - lo;
-  cell_m = std::max(cell_m > 0.0 ? cell_m : 1.0, 1e-3);
-  while ((std::floor(size.x() / cell_m) + 1.0) * (std::floor(size.y() / cell_m) + 1.0) > max_cells)
-    cell_m *= 2.0;
-  cell_m_ = cell_m;
-  origin_ = lo;
-  nx_ = static_cast<int64_t>(std::floor(size.x() / cell_m)) + 1;
-  ny_ = static_cast<int64_t>(std::floor(size.y() / cell_m)) + 1;
+BoxTree::BoxTree(const std::vector<Box>& boxes) : boxes_(boxes) {
+  if (boxes_.empty()) return;
+  if (boxes_.size() >= std::numeric_limits<uint32_t>::max())
+    throw std::length_error("BoxTree: too many items");
+  const uint32_t n = static_cast<uint32_t>(boxes_.size());
+  items_.resize(n);
+  for (uint32_t i = 0; i < n; ++i) items_[i] = i;
+  nodes_.reserve(2 * (n / kLeafItems + 1));
+  nodes_.push_back({{}, 0, n, 0});
+  // breadth first: each node's two children are pushed next to each other
+  for (size_t k = 0; k < nodes_.size(); ++k) {
+    const uint32_t begin = nodes_[k].begin, end = nodes_[k].end;
+    Box box = boxes_[items_[begin]];
+    Vec2 centre_lo = 0.5 * (box.lo + box.hi), centre_hi = centre_lo;
+    for (uint32_t j = begin; j < end; ++j) {
+      const Box& b = boxes_[items_[j]];
+      box.lo = box.lo.cwiseMin(b.lo);
+      box.hi = box.hi.cwiseMax(b.hi);
+      const Vec2 c = 0.5 * (b.lo + b.hi);
+      centre_lo = centre_lo.cwiseMin(c);
+      centre_hi = centre_hi.cwiseMax(c);
+    }
+    nodes_[k].box = box;
+    if (end - begin <= kLeafItems) continue;
+    // halve at the median centre along the longer side of the centres' box (ties by index,
+    // so that the tree is the same on every platform)
+    const int axis = (centre_hi - centre_lo).x() >= (centre_hi - centre_lo).y() ? 0 : 1;
+    const uint32_t mid = begin + (end - begin) / 2;
+    std::nth_element(items_.begin() + begin, items_.begin() + mid, items_.begin() + end,
+                     [&](uint32_t a, uint32_t b) {
+                       const double ca = boxes_[a].lo[axis] + boxes_[a].hi[axis];
+                       const double cb = boxes_[b].lo[axis] + boxes_[b].hi[axis];
+                       return ca < cb || (ca == cb && a < b);
+                     });
+    nodes_[k].first_child = static_cast<uint32_t>(nodes_.size());
+    nodes_.push_back({{}, begin, mid, 0});
+    nodes_.push_back({{}, mid, end, 0});
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
 // points
 
-PointIndex::PointIndex(const std::vector<Vec2>& points, double cell_m) : points_(points) {
-  if (points_.empty()) return;
-  const auto [lo, hi] = box_of(points_);
-  grid_.shape(lo, hi, cell_m, points_.size());
-  grid_.fill(points_.size(), [this](size_t i, auto&& visit) {
-    visit(std::clamp<int64_t>(grid_.cx(points_[i].x()), 0, grid_.nx() - 1),
-          std::clamp<int64_t>(grid_.cy(points_[i].y()), 0, grid_.ny() - 1));
-  });
+namespace {
+
+std::vector<BoxTree::Box> point_boxes(const std::vector<Vec2>& points) {
+  std::vector<BoxTree::Box> boxes;
+  boxes.reserve(points.size());
+  for (const Vec2& p : points) boxes.push_back({p, p});
+  return boxes;
 }
+
+}  // namespace
+
+PointIndex::PointIndex(const std::vector<Vec2>& points)
+    : points_(points), tree_(point_boxes(points)) {}
 
 std::vector<size_t> PointIndex::within(const Vec2& p, double radius_m) const {
   std::vector<size_t> out;
@@ -61,94 +82,39 @@ std::vector<size_t> PointIndex::within(const Vec2& p, double radius_m) const {
 // ---------------------------------------------------------------------------------------------
 // polyline segments
 
-PolylineIndex::PolylineIndex(const std::vector<Vec2>& points, bool closed, double cell_m)
-    : points_(points) {
+PolylineIndex::PolylineIndex(const std::vector<Vec2>& points, bool closed) : points_(points) {
   const size_t n = points_.size();
   segments_ = n < 2 ? 0 : (closed ? n : n - 1);
-  if (segments_ == 0) return;
-
-  // cells about a median segment wide (at least 0.5 m)
-  if (cell_m <= 0.0) {
-    std::vector<double> lengths;
-    lengths.reserve(segments_);
-    for (size_t i = 0; i < segments_; ++i)
-      lengths.push_back((points_[(i + 1) % n] - points_[i]).norm());
-    std::nth_element(lengths.begin(), lengths.begin() + lengths.size() / 2, lengths.end());
-    cell_m = std::max(0.5, lengths[lengths.size() / 2]);
-  }
-  const auto [lo, hi] = box_of(points_);
-  grid_.shape(lo, hi, cell_m, segments_);
-
-  // each segment in every cell its bounding box covers, a long one apart
-  std::vector<bool> is_long(segments_, false);
-  const auto cells_of = [&](size_t i, auto&& visit) {
-    if (is_long[i]) return;
-    const Vec2& a = points_[i];
-    const Vec2& b = points_[(i + 1) % n];
-    const int64_t x0 = grid_.cx(std::min(a.x(), b.x())), x1 = grid_.cx(std::max(a.x(), b.x()));
-    const int64_t y0 = grid_.cy(std::min(a.y(), b.y())), y1 = grid_.cy(std::max(a.y(), b.y()));
-    for (int64_t x = std::max<int64_t>(x0, 0); x <= std::min(x1, grid_.nx() - 1); ++x)
-      for (int64_t y = std::max<int64_t>(y0, 0); y <= std::min(y1, grid_.ny() - 1); ++y)
-        visit(x, y);
-  };
+  std::vector<BoxTree::Box> boxes;
+  boxes.reserve(segments_);
   for (size_t i = 0; i < segments_; ++i) {
     const Vec2& a = points_[i];
     const Vec2& b = points_[(i + 1) % n];
-    const int64_t cells = (std::abs(grid_.cx(a.x()) - grid_.cx(b.x())) + 1) *
-                          (std::abs(grid_.cy(a.y()) - grid_.cy(b.y())) + 1);
-    if (cells > kMaxCellsPerSegment) {
-      is_long[i] = true;
-      long_segments_.push_back(i);
-    }
+    boxes.push_back({a.cwiseMin(b), a.cwiseMax(b)});
   }
-  grid_.fill(segments_, cells_of);
+  tree_ = BoxTree(boxes);
 }
 
-void PolylineIndex::consider(size_t i, const Vec2& p, Nearest& best) const {
+PolylineIndex::Nearest PolylineIndex::on_segment(size_t i, const Vec2& p) const {
   const Vec2& a = points_[i];
   const Vec2 ab = points_[(i + 1) % points_.size()] - a;
   const double len2 = ab.squaredNorm();
   const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
   const Vec2 q = a + t * ab;
-  const double d2 = (p - q).squaredNorm();
-  if (d2 < best.distance2 || (d2 == best.distance2 && i < best.segment)) best = {q, d2, i, t};
+  return {q, (p - q).squaredNorm(), i, t};
 }
 
 PolylineIndex::Nearest PolylineIndex::nearest(const Vec2& p) const {
-  Nearest best;
-  if (points_.empty()) return best;
+  if (points_.empty()) return {};
   if (points_.size() == 1) return {points_.front(), (p - points_.front()).squaredNorm(), 0, 0.0};
-  best.segment = std::numeric_limits<size_t>::max();
-  for (size_t i : long_segments_) consider(i, p, best);
-
-  // rings of cells outwards from p's cell until no unvisited cell can hold a nearer place: a
-  // segment is listed in the cell of each of its points
-  const int64_t cx = grid_.cx(p.x()), cy = grid_.cy(p.y());
-  const auto [first, last] = ring_range(cx, cy, grid_.nx(), grid_.ny());
-  for (int64_t k = first; k <= last; ++k) {
-    if (std::isfinite(best.distance2) &&
-        static_cast<double>(k - 1) * grid_.cell_m() > std::sqrt(best.distance2))
-      break;
-    for_each_ring_cell(cx, cy, k, grid_.nx(), grid_.ny(), [&](int64_t x, int64_t y) {
-      grid_.for_each_in(x, y, [&](size_t i) { consider(i, p, best); });
-    });
-  }
-  return best;
+  const size_t best = tree_.nearest(p, [&](size_t i) { return on_segment(i, p).distance2; }).first;
+  return best == BoxTree::kNone ? Nearest{} : on_segment(best, p);  // kNone: p is not a number
 }
 
 std::vector<size_t> PolylineIndex::segments_near(const Vec2& lo, const Vec2& hi) const {
-  std::vector<size_t> out(long_segments_);
-  if (segments_ > 0) {
-    const int64_t x0 = std::max<int64_t>(grid_.cx(lo.x()), 0);
-    const int64_t x1 = std::min(grid_.cx(hi.x()), grid_.nx() - 1);
-    const int64_t y0 = std::max<int64_t>(grid_.cy(lo.y()), 0);
-    const int64_t y1 = std::min(grid_.cy(hi.y()), grid_.ny() - 1);
-    for (int64_t x = x0; x <= x1; ++x)
-      for (int64_t y = y0; y <= y1; ++y)
-        grid_.for_each_in(x, y, [&](size_t i) { out.push_back(i); });
-  }
+  std::vector<size_t> out;
+  tree_.for_each_overlapping(lo, hi, [&out](size_t i) { out.push_back(i); });
   std::sort(out.begin(), out.end());
-  out.erase(std::unique(out.begin(), out.end()), out.end());
   return out;
 }
 

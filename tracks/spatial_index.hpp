@@ -1,13 +1,16 @@
 #pragma once
-// Uniform grids over points and polyline segments: the neighbours of a place and the nearest
-// point or segment cost what is near the query, not the whole layout, so that track
-// operations stay O(n log n) in the number of cones (a venue's cone map has thousands).
+// Bounding-box trees over points and polyline segments: the neighbours of a place and the
+// nearest point or segment cost what is near the query (O(log n) for a typical query), not the
+// whole layout, so that track operations stay O(n log n) in the number of cones (a venue's
+// cone map has thousands). Unlike a grid over the layout's box, the tree does not coarsen when
+// one cone lies kilometres from the rest.
 
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "core/geometry.hpp"
@@ -16,50 +19,69 @@ namespace conesim::tracks {
 
 using core::Vec2;
 
-/// A dense grid of cells over a box, each listing item indices (compressed rows). The cells
-/// grow beyond the asked size when the box would need more than a few per item, so that the
-/// memory stays linear in the items whatever the layout's extent.
-class CellGrid {
+/// A static tree of axis-aligned boxes, one per item: each node holds the box of its items,
+/// split in half at the median centre along the longer side, down to leaves of a few items.
+/// Depth is log2(n) whatever the layout's extent or clustering.
+class BoxTree {
  public:
-  /// Cells of about `cell_m` over [lo, hi], at most max(4 * items, 4096) of them.
-  void shape(const Vec2& lo, const Vec2& hi, double cell_m, size_t items);
-  /// Fills the cells: `cells_of(i, visit)` calls visit(cx, cy) for each cell item i is in.
-  template <typename CellsOf>
-  void fill(size_t items, CellsOf&& cells_of);
-  /// The cell coordinate of a value along x or y (not clamped).
-  int64_t cx(double x) const {
-    return static_cast<int64_t>(std::floor((x - origin_.x()) / cell_m_));
-  }
-  int64_t cy(double y) const {
-    return static_cast<int64_t>(std::floor((y - origin_.y()) / cell_m_));
-  }
-  /// Calls f(item) for each item listed in cell (x, y) (nothing outside the grid).
+  struct Box {
+    Vec2 lo = Vec2::Zero();
+    Vec2 hi = Vec2::Zero();
+  };
+
+  BoxTree() = default;
+  /// A tree over items 0..boxes.size()-1.
+  explicit BoxTree(const std::vector<Box>& boxes);
+
+  bool empty() const { return nodes_.empty(); }
+
+  /// Calls f(item) for each item whose box overlaps [lo, hi] (touching counts), in no set order.
   template <typename F>
-  void for_each_in(int64_t x, int64_t y, F&& f) const {
-    if (x < 0 || y < 0 || x >= nx_ || y >= ny_) return;
-    const size_t c = static_cast<size_t>(y) * static_cast<size_t>(nx_) + static_cast<size_t>(x);
-    for (uint32_t k = starts_[c]; k < starts_[c + 1]; ++k) f(static_cast<size_t>(items_[k]));
+  void for_each_overlapping(const Vec2& lo, const Vec2& hi, F&& f) const {
+    any_overlapping(lo, hi, [&f](size_t i) {
+      f(i);
+      return false;
+    });
   }
-  double cell_m() const { return cell_m_; }
-  int64_t nx() const { return nx_; }
-  int64_t ny() const { return ny_; }
-  bool empty() const { return nx_ == 0; }
+  /// True as soon as pred(item) holds for an item whose box overlaps [lo, hi].
+  template <typename Pred>
+  bool any_overlapping(const Vec2& lo, const Vec2& hi, Pred&& pred) const;
+
+  /// The item with the least distance2(item) (ties: the lowest index), visiting nearer boxes
+  /// first and skipping those farther than the best so far: distance2(i) must be at least the
+  /// squared distance from p to item i's box (+infinity rejects the item). {kNone, inf} when
+  /// none is accepted.
+  static constexpr size_t kNone = std::numeric_limits<size_t>::max();
+  template <typename Distance2>
+  std::pair<size_t, double> nearest(const Vec2& p, Distance2&& distance2) const;
 
  private:
-  Vec2 origin_ = Vec2::Zero();
-  double cell_m_ = 1.0;
-  int64_t nx_ = 0, ny_ = 0;
-  std::vector<uint32_t> starts_;
-  std::vector<uint32_t> items_;
+  struct Node {
+    Box box;
+    uint32_t begin = 0, end = 0;  // items_[begin, end) below this node
+    uint32_t first_child = 0;     // 0 for a leaf (the root is never a child)
+  };
+  static double distance2_to(const Box& b, const Vec2& p) {
+    const double dx = std::max({b.lo.x() - p.x(), 0.0, p.x() - b.hi.x()});
+    const double dy = std::max({b.lo.y() - p.y(), 0.0, p.y() - b.hi.y()});
+    return dx * dx + dy * dy;
+  }
+  static bool overlaps(const Box& b, const Vec2& lo, const Vec2& hi) {
+    return b.lo.x() <= hi.x() && lo.x() <= b.hi.x() && b.lo.y() <= hi.y() && lo.y() <= b.hi.y();
+  }
+
+  std::vector<Node> nodes_;
+  std::vector<Box> boxes_;       // per item
+  std::vector<uint32_t> items_;  // item indices in leaf order
 };
 
-/// Points in a grid of square cells.
+/// Points, for radius and nearest queries.
 class PointIndex {
  public:
-  static constexpr size_t kNone = std::numeric_limits<size_t>::max();
+  static constexpr size_t kNone = BoxTree::kNone;
 
-  /// Indexes a copy of `points` in cells about `cell_m` wide.
-  PointIndex(const std::vector<Vec2>& points, double cell_m);
+  /// Indexes a copy of `points`.
+  explicit PointIndex(const std::vector<Vec2>& points);
 
   /// Calls f(i) for each point within `radius_m` of p (distance <= radius), in no set order.
   template <typename F>
@@ -70,14 +92,22 @@ class PointIndex {
 
   /// The nearest point to p that `accept(i)` admits (ties: the lowest index), kNone when none.
   template <typename Accept>
-  size_t nearest(const Vec2& p, Accept&& accept) const;
+  size_t nearest(const Vec2& p, Accept&& accept) const {
+    return tree_
+        .nearest(p,
+                 [&](size_t i) {
+                   return accept(i) ? (points_[i] - p).squaredNorm()
+                                    : std::numeric_limits<double>::infinity();
+                 })
+        .first;
+  }
 
  private:
   std::vector<Vec2> points_;
-  CellGrid grid_;
+  BoxTree tree_;
 };
 
-/// The segments of a polyline (closed: the last point joins the first) in a grid.
+/// The segments of a polyline (closed: the last point joins the first).
 class PolylineIndex {
  public:
   /// The nearest place on the polyline: the point, its squared distance, the segment (from
@@ -89,109 +119,101 @@ class PolylineIndex {
     double t = 0.0;
   };
 
-  /// Indexes the segments of a copy of `points`. cell_m <= 0: a cell about as wide as the
-  /// median segment is long.
-  PolylineIndex(const std::vector<Vec2>& points, bool closed, double cell_m = 0.0);
+  PolylineIndex() = default;
+  /// Indexes the segments of a copy of `points`.
+  PolylineIndex(const std::vector<Vec2>& points, bool closed);
 
   /// The nearest place on the polyline to p (ties: the lowest segment); a single point is its
   /// own polyline; distance2 is infinite for an empty one. The same result as a scan of every
   /// segment.
   Nearest nearest(const Vec2& p) const;
 
-  /// The segments whose cells overlap the box [lo, hi], ascending (a superset of those that
-  /// come into the box).
+  /// The segments whose bounding boxes overlap the box [lo, hi], ascending (a superset of
+  /// those that come into the box).
   std::vector<size_t> segments_near(const Vec2& lo, const Vec2& hi) const;
 
   /// Number of segments.
   size_t segment_count() const { return segments_; }
 
  private:
-  void consider(size_t i, const Vec2& p, Nearest& best) const;
+  // the nearest place on segment i to p
+  Nearest on_segment(size_t i, const Vec2& p) const;
 
   std::vector<Vec2> points_;
   size_t segments_ = 0;
-  CellGrid grid_;
-  // segments spanning too many cells to list in each: always considered
-  std::vector<size_t> long_segments_;
+  BoxTree tree_;
 };
 
-/// Calls f(x, y) for each cell of the Chebyshev ring k around (cx, cy) within [0, nx) x [0, ny).
-template <typename F>
-void for_each_ring_cell(int64_t cx, int64_t cy, int64_t k, int64_t nx, int64_t ny, F&& f) {
-  const int64_t x0 = std::max<int64_t>(cx - k, 0), x1 = std::min(cx + k, nx - 1);
-  const int64_t y0 = std::max<int64_t>(cy - k, 0), y1 = std::min(cy + k, ny - 1);
-  if (x0 > x1 || y0 > y1) return;
-  // the top and bottom rows, then the columns between them
-  for (int64_t y : {cy - k, cy + k}) {
-    if (y >= 0 && y < ny)
-      for (int64_t x = x0; x <= x1; ++x) f(x, y);
-    if (k == 0) return;
+template <typename Pred>
+bool BoxTree::any_overlapping(const Vec2& lo, const Vec2& hi, Pred&& pred) const {
+  if (nodes_.empty()) return false;
+  uint32_t stack[64];  // depth is at most log2 of 2^32 items
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& node = nodes_[stack[--top]];
+    if (!overlaps(node.box, lo, hi)) continue;
+    if (node.first_child == 0) {
+      for (uint32_t k = node.begin; k < node.end; ++k)
+        if (overlaps(boxes_[items_[k]], lo, hi) && pred(static_cast<size_t>(items_[k])))
+          return true;
+    } else {
+      stack[top++] = node.first_child;
+      stack[top++] = node.first_child + 1;
+    }
   }
-  for (int64_t x : {cx - k, cx + k})
-    if (x >= 0 && x < nx)
-      for (int64_t y = std::max<int64_t>(cy - k + 1, 0); y <= std::min(cy + k - 1, ny - 1); ++y)
-        f(x, y);
+  return false;
 }
 
-/// The first and last ring around (cx, cy) that can hold a cell of the grid.
-inline std::pair<int64_t, int64_t> ring_range(int64_t cx, int64_t cy, int64_t nx, int64_t ny) {
-  const int64_t first = std::max({int64_t{0}, -cx, cx - (nx - 1), -cy, cy - (ny - 1)});
-  const int64_t last = std::max({cx, nx - 1 - cx, cy, ny - 1 - cy});
-  return {first, last};
-}
-
-template <typename CellsOf>
-void CellGrid::fill(size_t items, CellsOf&& cells_of) {
-  // two passes over the cells each item is in: count, then fill
-  std::vector<uint32_t> counts(static_cast<size_t>(nx_ * ny_) + 1, 0);
-  for (size_t i = 0; i < items; ++i)
-    cells_of(i, [&](int64_t x, int64_t y) { ++counts[static_cast<size_t>(y * nx_ + x) + 1]; });
-  for (size_t c = 1; c < counts.size(); ++c) counts[c] += counts[c - 1];
-  starts_ = counts;
-  items_.resize(counts.back());
-  for (size_t i = 0; i < items; ++i)
-    cells_of(i, [&](int64_t x, int64_t y) {
-      items_[counts[static_cast<size_t>(y * nx_ + x)]++] = static_cast<uint32_t>(i);
-    });
+template <typename Distance2>
+std::pair<size_t, double> BoxTree::nearest(const Vec2& p, Distance2&& distance2) const {
+  size_t best = kNone;
+  double best_d2 = std::numeric_limits<double>::infinity();
+  if (nodes_.empty()) return {best, best_d2};
+  // depth first, the nearer child first; a node is skipped when its box is farther than the
+  // best so far (equal is kept, for the tie rule)
+  std::pair<uint32_t, double> stack[64];
+  int top = 0;
+  stack[top++] = {0, distance2_to(nodes_[0].box, p)};
+  while (top > 0) {
+    const auto [index, box_d2] = stack[--top];
+    if (box_d2 > best_d2) continue;
+    const Node& node = nodes_[index];
+    if (node.first_child == 0) {
+      for (uint32_t k = node.begin; k < node.end; ++k) {
+        const size_t i = items_[k];
+        if (distance2_to(boxes_[i], p) > best_d2) continue;
+        const double d2 = distance2(i);
+        const bool tie = d2 == best_d2 && best != kNone && i < best;
+        if (d2 < best_d2 || tie) {
+          best_d2 = d2;
+          best = i;
+        }
+      }
+      continue;
+    }
+    const uint32_t a = node.first_child, b = node.first_child + 1;
+    const double da = distance2_to(nodes_[a].box, p), db = distance2_to(nodes_[b].box, p);
+    // the nearer one on top
+    if (da <= db) {
+      stack[top++] = {b, db};
+      stack[top++] = {a, da};
+    } else {
+      stack[top++] = {a, da};
+      stack[top++] = {b, db};
+    }
+  }
+  return {best, best_d2};
 }
 
 template <typename F>
 void PointIndex::for_each_within(const Vec2& p, double radius_m, F&& f) const {
-  if (grid_.empty() || !(radius_m >= 0.0)) return;
+  if (!(radius_m >= 0.0)) return;
   const double r2 = radius_m * radius_m;
-  const int64_t x0 = std::max<int64_t>(grid_.cx(p.x() - radius_m), 0);
-  const int64_t x1 = std::min(grid_.cx(p.x() + radius_m), grid_.nx() - 1);
-  const int64_t y0 = std::max<int64_t>(grid_.cy(p.y() - radius_m), 0);
-  const int64_t y1 = std::min(grid_.cy(p.y() + radius_m), grid_.ny() - 1);
-  for (int64_t y = y0; y <= y1; ++y)
-    for (int64_t x = x0; x <= x1; ++x)
-      grid_.for_each_in(x, y, [&](size_t i) {
-        if ((points_[i] - p).squaredNorm() <= r2) f(i);
-      });
-}
-
-template <typename Accept>
-size_t PointIndex::nearest(const Vec2& p, Accept&& accept) const {
-  size_t best = kNone;
-  double best_d2 = std::numeric_limits<double>::infinity();
-  if (grid_.empty()) return best;
-  const auto consider = [&](size_t i) {
-    if (!accept(i)) return;
-    const double d2 = (points_[i] - p).squaredNorm();
-    if (d2 < best_d2 || (d2 == best_d2 && i < best)) {
-      best_d2 = d2;
-      best = i;
-    }
-  };
-  // rings of cells outwards from p's cell until no unvisited cell can hold a nearer point
-  const int64_t cx = grid_.cx(p.x()), cy = grid_.cy(p.y());
-  const auto [first, last] = ring_range(cx, cy, grid_.nx(), grid_.ny());
-  for (int64_t k = first; k <= last; ++k) {
-    if (best != kNone && static_cast<double>(k - 1) * grid_.cell_m() > std::sqrt(best_d2)) break;
-    for_each_ring_cell(cx, cy, k, grid_.nx(), grid_.ny(),
-                       [&](int64_t x, int64_t y) { grid_.for_each_in(x, y, consider); });
-  }
-  return best;
+  const Vec2 reach = Vec2::Constant(radius_m);
+  tree_.for_each_overlapping(p - reach, p + reach, [&](size_t i) {
+    if ((points_[i] - p).squaredNorm() <= r2) f(i);
+  });
 }
 
 }  // namespace conesim::tracks

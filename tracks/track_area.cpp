@@ -8,8 +8,6 @@ namespace conesim::tracks {
 
 namespace {
 
-/// Cell size of the triangle grid, metres.
-constexpr double kCellM = 2.0;
 /// A diagonal is checked against the lane segments this many indices either side of its ends.
 constexpr int kCrossingWindow = 12;
 /// Points this close outside a triangle's edge count as inside (rounding), metres.
@@ -107,74 +105,31 @@ TrackArea TrackArea::of(const Track& track, double open_extension_m) {
       ++j;
     }
   }
-  area.left_ = std::move(left);
-  area.right_ = std::move(right);
-
-  // the grid: each triangle listed in every cell its bounding box touches
-  Vec2 lo = area.triangles_.front()[0], hi = lo;
-  for (const auto& t : area.triangles_)
-    for (const Vec2& v : t) {
-      lo = lo.cwiseMin(v);
-      hi = hi.cwiseMax(v);
-    }
-  area.cell_m_ = kCellM;
-  area.origin_ = lo - Vec2::Constant(kCellM);
-  area.nx_ = static_cast<int>(std::ceil((hi.x() - area.origin_.x()) / kCellM)) + 2;
-  area.ny_ = static_cast<int>(std::ceil((hi.y() - area.origin_.y()) / kCellM)) + 2;
-  const size_t cells = static_cast<size_t>(area.nx_) * static_cast<size_t>(area.ny_);
-  std::vector<int> counts(cells + 1, 0);
-  auto for_cells = [&](const std::array<Vec2, 3>& t, auto&& visit) {
-    Vec2 a = t[0], b = t[0];
-    for (const Vec2& v : t) {
-      a = a.cwiseMin(v);
-      b = b.cwiseMax(v);
-    }
-    const int x0 = static_cast<int>((a.x() - area.origin_.x()) / kCellM);
-    const int y0 = static_cast<int>((a.y() - area.origin_.y()) / kCellM);
-    const int x1 = static_cast<int>((b.x() - area.origin_.x()) / kCellM);
-    const int y1 = static_cast<int>((b.y() - area.origin_.y()) / kCellM);
-    for (int y = y0; y <= y1; ++y)
-      for (int x = x0; x <= x1; ++x) visit(static_cast<size_t>(y) * area.nx_ + x);
-  };
-  for (const auto& t : area.triangles_) for_cells(t, [&](size_t c) { ++counts[c + 1]; });
-  for (size_t c = 1; c < counts.size(); ++c) counts[c] += counts[c - 1];
-  area.cell_starts_ = counts;
-  area.cell_items_.resize(static_cast<size_t>(counts.back()));
-  for (size_t k = 0; k < area.triangles_.size(); ++k)
-    for_cells(area.triangles_[k],
-              [&](size_t c) { area.cell_items_[static_cast<size_t>(counts[c]++)] = int(k); });
+  area.left_ = PolylineIndex(left, false);
+  area.right_ = PolylineIndex(right, false);
+  // the triangles' boxes, grown by what in_triangle lets pass outside an edge
+  std::vector<BoxTree::Box> boxes;
+  boxes.reserve(area.triangles_.size());
+  for (const auto& t : area.triangles_) {
+    const Vec2 lo = t[0].cwiseMin(t[1]).cwiseMin(t[2]), hi = t[0].cwiseMax(t[1]).cwiseMax(t[2]);
+    boxes.push_back({lo - Vec2::Constant(kEdgeToleranceM), hi + Vec2::Constant(kEdgeToleranceM)});
+  }
+  area.triangle_tree_ = BoxTree(boxes);
   return area;
 }
 
 bool TrackArea::contains(const Vec2& p) const {
-  if (triangles_.empty()) return false;
-  const Vec2 q = (p - origin_) / cell_m_;
-  if (!(q.x() >= 0.0 && q.y() >= 0.0 && q.x() < nx_ && q.y() < ny_)) return false;
-  const size_t c = static_cast<size_t>(static_cast<int>(q.y())) * nx_ + static_cast<int>(q.x());
-  for (int k = cell_starts_[c]; k < cell_starts_[c + 1]; ++k)
-    if (in_triangle(triangles_[static_cast<size_t>(cell_items_[static_cast<size_t>(k)])], p))
-      return true;
-  return false;
+  return triangle_tree_.any_overlapping(p, p,
+                                        [&](size_t k) { return in_triangle(triangles_[k], p); });
 }
 
 std::optional<BoundaryPoint> TrackArea::nearest_boundary(const Vec2& p) const {
   if (triangles_.empty()) return std::nullopt;
-  BoundaryPoint best;
-  best.distance_m = std::numeric_limits<double>::infinity();
-  auto scan = [&](const std::vector<Vec2>& lane, bool is_left) {
-    for (size_t s = 0; s + 1 < lane.size(); ++s) {
-      const Vec2 &a = lane[s], &b = lane[s + 1];
-      const Vec2 ab = b - a;
-      const double len2 = ab.squaredNorm();
-      const double u = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-      const Vec2 q = a + u * ab;
-      const double d = (p - q).norm();
-      if (d < best.distance_m) best = {is_left, q, d};
-    }
-  };
-  scan(left_, true);
-  scan(right_, false);
-  return best;
+  const PolylineIndex::Nearest l = left_.nearest(p), r = right_.nearest(p);
+  // the left lane on a tie, as a scan of left then right would give
+  const bool left = !(r.distance2 < l.distance2);
+  const Vec2 point = left ? l.point : r.point;
+  return BoundaryPoint{left, point, (p - point).norm()};
 }
 
 }  // namespace conesim::tracks

@@ -10,6 +10,7 @@
 #include <optional>
 #include <vector>
 
+#include "tracks/spatial_index.hpp"
 #include "tracks/track.hpp"
 
 namespace conesim::tracks {
@@ -51,15 +52,9 @@ class TrackArea {
 
  private:
   std::vector<std::array<Vec2, 3>> triangles_;
-  std::vector<Vec2> left_;  // lane polylines as judged (closed ones repeat their first point)
-  std::vector<Vec2> right_;
-  // a uniform grid over the triangles' bounding boxes (compressed rows)
-  Vec2 origin_ = Vec2::Zero();
-  double cell_m_ = 2.0;
-  int nx_ = 0;
-  int ny_ = 0;
-  std::vector<int> cell_starts_;
-  std::vector<int> cell_items_;
+  BoxTree triangle_tree_;  // the triangles' bounding boxes
+  // the lane polylines as judged (closed ones repeat their first point)
+  PolylineIndex left_, right_;
 };
 
 }  // namespace conesim::tracks

@@ -19,12 +19,16 @@ std::vector<Vec2> random_points(core::Rng& rng, size_t n, double lo, double hi) 
   return pts;
 }
 
-// the grids answer exactly what a scan of every point or segment answers
+// the indexes answer exactly what a scan of every point or segment answers: on spread points,
+// on points in tight clusters (many alike), and with one point kilometres from the rest
 TEST(PointIndex, NearestAndWithinMatchAScan) {
   core::Rng rng(3);
-  for (double cell_m : {0.3, 5.0, 400.0}) {
-    const std::vector<Vec2> pts = random_points(rng, 500, -100.0, 100.0);
-    const PointIndex index(pts, cell_m);
+  for (int layout = 0; layout < 3; ++layout) {
+    std::vector<Vec2> pts = random_points(rng, 500, -100.0, 100.0);
+    if (layout == 1)
+      for (Vec2& p : pts) p = Vec2(std::round(p.x() / 40.0), std::round(p.y() / 40.0)) * 40.0;
+    if (layout == 2) pts[7] = Vec2(3000.0, -2500.0);
+    const PointIndex index(pts);
     for (int q = 0; q < 200; ++q) {
       // queries inside the points' box and far outside it
       const double reach = q % 4 == 0 ? 1e6 : 150.0;
@@ -34,7 +38,7 @@ TEST(PointIndex, NearestAndWithinMatchAScan) {
       for (size_t i = 0; i < pts.size(); i += 2)
         if (scan == PointIndex::kNone || (pts[i] - p).squaredNorm() < (pts[scan] - p).squaredNorm())
           scan = i;
-      EXPECT_EQ(index.nearest(p, even), scan) << "cell " << cell_m;
+      EXPECT_EQ(index.nearest(p, even), scan) << "layout " << layout;
 
       const double r = core::uniform(rng, 0.0, 30.0);
       std::vector<size_t> within;
@@ -45,14 +49,14 @@ TEST(PointIndex, NearestAndWithinMatchAScan) {
   }
   // nothing accepted, nothing indexed
   const std::vector<Vec2> none;
-  EXPECT_EQ(PointIndex(none, 1.0).nearest({0.0, 0.0}, [](size_t) { return true; }),
+  EXPECT_EQ(PointIndex(none).nearest({0.0, 0.0}, [](size_t) { return true; }),
             PointIndex::kNone);
 }
 
 TEST(PolylineIndex, NearestMatchesAScan) {
   core::Rng rng(5);
   for (bool closed : {false, true}) {
-    // a wandering line with a few very long segments (kept apart from the grid)
+    // a wandering line with a few very long segments
     std::vector<Vec2> pts{{0.0, 0.0}};
     for (int i = 1; i < 400; ++i) {
       const double step = i % 97 == 0 ? 5000.0 : core::uniform(rng, 0.5, 6.0);
