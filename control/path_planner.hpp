@@ -19,8 +19,10 @@ struct PlannerParams {
   double max_link_m = 10.5;
   /// Largest turn between consecutive links of a chain, radians.
   double max_link_turn_rad = 1.3;
-  /// A link costs its length times (1 + turn_weight * turn^2): straight-on links win.
-  double turn_weight = 2.0;
+  /// A link costs its length times (1 + turn_weight * turn^2): straight-on links win. With 2,
+  /// the off-class penalty of a start's big orange cone outweighed a 0.7 rad turn to a yellow
+  /// cone of the lane beyond (EUFS Jellybean), and the boundary left the start gate.
+  double turn_weight = 3.0;
   /// Extra cost of an orange or unknown cone in a chain, metres (a coloured cone is preferred).
   double off_class_penalty_m = 3.0;
   /// A cone of one chain closer than this to the other boundary is taken for a wrong colour or

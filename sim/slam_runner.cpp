@@ -406,7 +406,7 @@ const SlamRunner::Forward& SlamRunner::forward(TimeUs t) const {
   slam::Odometry forward = odometry_;
   feed_.feed_copy(forward, t);
   forward_.delta = forward.take_delta(t);
-  forward_.speed_mps = forward.speed_mps();
+  forward_.speed_mps = forward.filtered_speed_mps();
   forward_.mean_speed_mps = forward.mean_speed_mps();
   forward_.yaw_rate_rps = forward.yaw_rate_rps();
   forward_.t = t;

@@ -98,6 +98,11 @@ class Odometry {
   /// teeth, so one sample reads the speed only to about 3 m/s at 100 Hz; the mean over 0.1 s
   /// (a LiDAR sweep) reads it to 0.3 m/s.
   double mean_speed_mps() const;
+  /// The forward speed for control, m/s: carried from wheel sample to wheel sample by the IMU's
+  /// longitudinal acceleration and pulled to the rolling axle's wheel speed with a time constant
+  /// of kCarryTimeS, so that it follows accelerations without lag while the teeth' quantisation
+  /// hardly shows in it.
+  double filtered_speed_mps() const { return carried_speed_mps_; }
   /// Latest fused yaw rate, rad/s.
   double yaw_rate_rps() const;
   /// The gyro bias learnt at standstill, rad/s.

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -249,6 +250,43 @@ TEST(PathPlanner, AConeOfTheWrongColourForItsSideBecomesAnObstacleOnly) {
   for (size_t i = 0; i + 2 < map.size(); ++i) EXPECT_EQ(kept[i].cls, map[i].cls) << "cone " << i;
   EXPECT_EQ(kept[map.size() - 2].cls, ConeClass::kUnknown);
   EXPECT_EQ(kept.back().cls, ConeClass::kBlue);
+}
+
+// EUFS Jellybean's start, as the car sees it a metre past the go line, heading a little right.
+// The right boundary's first link used to go to a yellow cone of the lane beyond rather than on
+// to the start's next big orange cone (a 0.7 rad turn cost less than the orange cone's penalty);
+// the conflict of that boundary with the left one then dropped the left's cones past the gate,
+// and the path, offset from the right boundary alone, passed 0.4 m from a start cone
+TEST(PathPlanner, StartGateKeepsBothBoundariesAndThePathClearOfItsCones) {
+  const std::vector<MapCone> cones = {
+      cone(ConeClass::kBlue, {-1.23, 3.36}),      cone(ConeClass::kBlue, {2.04, 3.07}),
+      cone(ConeClass::kOrangeBig, {4.14, 2.48}),  cone(ConeClass::kOrangeBig, {6.97, 2.03}),
+      cone(ConeClass::kBlue, {10.06, 1.04}),      cone(ConeClass::kBlue, {12.85, -0.47}),
+      cone(ConeClass::kBlue, {15.72, -2.27}),     cone(ConeClass::kBlue, {17.95, -4.11}),
+      cone(ConeClass::kYellow, {-2.01, -1.71}),   cone(ConeClass::kOrangeBig, {1.25, -2.11}),
+      cone(ConeClass::kOrangeBig, {3.70, -3.00}), cone(ConeClass::kOrangeBig, {7.26, -2.53}),
+      cone(ConeClass::kYellow, {10.43, -4.39}),   cone(ConeClass::kYellow, {12.59, -5.74}),
+      cone(ConeClass::kYellow, {13.54, -8.49}),   cone(ConeClass::kYellow, {2.94, -4.18}),
+      cone(ConeClass::kYellow, {3.10, -9.24}),    cone(ConeClass::kYellow, {1.40, -8.57}),
+      cone(ConeClass::kYellow, {-0.79, -8.50}),   cone(ConeClass::kYellow, {-2.91, -8.13}),
+      cone(ConeClass::kYellow, {-4.57, -2.51}),   cone(ConeClass::kBlue, {19.22, -6.62})};
+  const Pose2 pose{3.10, 0.39, -0.158};
+  const Boundaries b = chain_boundaries(cones, pose, {}, 30.0, false);
+  const auto has = [](const std::vector<Vec2>& chain, const Vec2& p) {
+    return std::any_of(chain.begin(), chain.end(),
+                       [&](const Vec2& q) { return (q - p).norm() < 1e-6; });
+  };
+  EXPECT_TRUE(has(b.right, {3.70, -3.00}));
+  EXPECT_TRUE(has(b.left, {6.97, 2.03}));
+  EXPECT_TRUE(has(b.left, {10.06, 1.04}));
+  // the path keeps the car's half width (0.7 m), a cone's radius and a margin from the gate's
+  // cones (the right boundary still links past the last one, 1.2 m inside it: the path keeps
+  // 1.5 m, where 0.4 m hit it)
+  const Path path = plan_local_path(cones, pose, {}, 20.0);
+  ASSERT_GE(path.points.size(), 3u);
+  for (const Vec2& gate_cone :
+       {Vec2(3.70, -3.00), Vec2(7.26, -2.53), Vec2(4.14, 2.48), Vec2(6.97, 2.03)})
+    EXPECT_GT(project_onto(path, gate_cone, 0, path.segment_count()).distance_m, 1.2);
 }
 
 TEST(PathPlanner, OpenBoundariesGiveNoCircuit) {
