@@ -3,12 +3,15 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cmath>
 #include <ctime>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <ostream>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 
 #include "core/error.hpp"
 #include "core/files.hpp"
@@ -494,27 +497,55 @@ json row_to_json(const RunRow& r) {
           {"regressions", r.regressions}};
 }
 
+// a field of a stored summary that is not what conesim writes there; parse_baseline names the
+// file and the run
+struct BadField : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// a whole number in [lo, hi] (a summary's counts, seeds, exit codes); a fraction, a number out
+// of range or another type is named rather than cast (a cast of 4e97 to int is undefined)
+long long whole_or(const json& j, const char* key, long long fallback, long long lo,
+                   long long hi) {
+  if (!j.is_object() || !j.contains(key) || j[key].is_null()) return fallback;
+  const json& v = j[key];
+  if (v.is_number_integer()) {
+    if (v.is_number_unsigned() ? v.get<unsigned long long>() <= static_cast<unsigned long long>(hi)
+                               : v.get<long long>() >= lo && v.get<long long>() <= hi)
+      return v.get<long long>();
+  } else if (v.is_number_float()) {
+    const double d = v.get<double>();
+    if (std::isfinite(d) && d == std::floor(d) && d >= static_cast<double>(lo) &&
+        d <= static_cast<double>(hi))
+      return static_cast<long long>(d);
+  }
+  throw BadField(std::string(key) + ": expected a whole number from " + std::to_string(lo) +
+                 " to " + std::to_string(hi) + ", found " + v.dump());
+}
+
 RunRow row_from_json(const json& j) {
+  constexpr long long kCount = 1'000'000'000;
   auto num = [&](const char* key) { return number_or_nan(j, key); };
   RunRow r;
   r.id = j.value("id", std::string());
   r.scenario = j.value("scenario", std::string());
   r.track = j.value("track", std::string());
-  r.seed = j.value("seed", 1ULL);
+  r.seed = static_cast<unsigned long long>(
+      whole_or(j, "seed", 1, 0, std::numeric_limits<long long>::max()));
   r.dir = j.value("dir", std::string());
   r.passed = j.value("verdict", std::string()) == "pass";
   r.refused = j.value("verdict", std::string()) == "refused";
   r.reasons = j.value("reasons", std::vector<std::string>());
   r.dnf_reason = j.value("dnf_reason", std::string());
-  r.exit_code = j.value("exit_code", 0);
+  r.exit_code = static_cast<int>(whole_or(j, "exit_code", 0, -kCount, kCount));
   r.event = j.value("event", std::string());
-  r.cones_hit = j.value("cones_hit", 0);
-  r.off_course = j.value("off_course", 0);
+  r.cones_hit = static_cast<int>(whole_or(j, "cones_hit", 0, 0, kCount));
+  r.off_course = static_cast<int>(whole_or(j, "off_course", 0, 0, kCount));
   for (const json& e : j.value("events", json::array()))
-    r.events.push_back({e.value("kind", std::string()), e.value("t_s", 0.0), e.value("lap", 0),
+    r.events.push_back({e.value("kind", std::string()), e.value("t_s", 0.0), static_cast<int>(whole_or(e, "lap", 0, 0, kCount)),
                         e.value("x_m", 0.0), e.value("y_m", 0.0), e.value("penalty_s", 0.0),
                         e.value("reason", std::string())});
-  r.laps = j.value("laps", 0);
+  r.laps = static_cast<int>(whole_or(j, "laps", 0, 0, kCount));
   r.best_lap_s = num("best_lap_s");
   r.final_time_s = num("final_time_s");
   r.lap_time_bound_s = num("lap_time_bound_s");
@@ -873,7 +904,17 @@ std::vector<RunRow> parse_baseline(const std::string& text, const std::string& n
   std::vector<RunRow> rows;
   try {
     const json b = json::parse(text);
-    for (const json& r : b.at("runs")) rows.push_back(row_from_json(r));
+    const json& runs = b.at("runs");
+    if (!runs.is_array()) throw BadField("runs: expected a list of runs, found " + runs.dump());
+    for (size_t k = 0; k < runs.size(); ++k) {
+      try {
+        rows.push_back(row_from_json(runs[k]));
+      } catch (const BadField& e) {
+        throw BadField("runs[" + std::to_string(k) + "]." + e.what());
+      }
+    }
+  } catch (const BadField& e) {
+    throw InputError(name, 0, std::string("not a conesim regress summary.json: ") + e.what());
   } catch (const json::exception& e) {
     throw InputError(name, 0, std::string("not a conesim regress summary.json: ") + e.what());
   }

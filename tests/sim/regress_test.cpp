@@ -153,6 +153,29 @@ TEST(Regress, RowSurvivesTheJsonRoundTrip) {
   EXPECT_TRUE(std::isnan(back.perception_recall));
 }
 
+// a baseline is a file a user hands over: a count that is no whole number is named, with its
+// run, rather than cast (a cast of 4e97 to int is undefined behaviour)
+TEST(Baseline, CountThatIsNoWholeNumberIsNamedWithItsRun) {
+  const std::string ok = R"({"runs":[{"id":"a","cones_hit":2,"seed":7}]})";
+  const std::vector<RunRow> rows = parse_baseline(ok, "base.json");
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_EQ(rows[0].cones_hit, 2);
+  EXPECT_EQ(rows[0].seed, 7u);
+  for (const std::string& bad :
+       {std::string(R"({"runs":[{"id":"a"},{"id":"b","cones_hit":4.4e97}]})"),
+        std::string(R"({"runs":[{"id":"a"},{"id":"b","cones_hit":1.5}]})"),
+        std::string(R"({"runs":[{"id":"a"},{"id":"b","cones_hit":-3}]})")}) {
+    try {
+      parse_baseline(bad, "base.json");
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const core::InputError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("base.json"), std::string::npos) << what;
+      EXPECT_NE(what.find("runs[1].cones_hit"), std::string::npos) << what;
+    }
+  }
+}
+
 TEST(Baseline, PassToFailIsARegression) {
   const std::vector<RunRow> before = {make_row(run("a", 1), metrics(true, 20.0), 0)};
   std::vector<RunRow> now = {make_row(run("a", 1), metrics(false, 20.0), 1)};
