@@ -109,6 +109,12 @@ constexpr double kManoeuvreAheadS = 1.5;
 constexpr double kNarrowLaneM = 2.5;
 constexpr double kNarrowLaneReachM = 5.0;
 constexpr double kNarrowLaneSpeedMps = 7.0;
+// the circuit from the map must pass within this of every point of the lap the car drove, and
+// each closed boundary within kLapOffBoundaryM: the car drives inside the lanes, so a correct
+// centre line is at most half a lane away (FSG lanes are 3-5 m wide; 4 m leaves room for a car
+// hugging one side of an 8 m lane) and a boundary at most a lane
+constexpr double kLapOffCircuitM = 4.0;
+constexpr double kLapOffBoundaryM = 8.0;
 // the lap line is searched among the big orange cones while the car is this close to the
 // start (by distance travelled), metres
 constexpr double kLapLineSearchOdometerM = 40.0;
@@ -635,6 +641,11 @@ struct Driver::Impl {
                  Boundaries* sides) const {
     constexpr double kMaxCircuitM = 3000.0;
     Boundaries b = chain_boundaries(map, from, planner, kMaxCircuitM, true);
+    // chains that leave out part of the lap the car drove (see follows_lap) are no boundaries
+    if (b.left_closed && b.right_closed &&
+        !(follows_lap(Path{b.left, true}, lap_trace, kLapOffBoundaryM) &&
+          follows_lap(Path{b.right, true}, lap_trace, kLapOffBoundaryM)))
+      b = {};
     if (!b.left_closed || !b.right_closed) b = boundaries_along(centre, map, planner);
     if (!b.left_closed || !b.right_closed) return centre;
     // a cone of the wrong colour for its side (a perception error) is an obstacle, not a side
@@ -647,6 +658,17 @@ struct Driver::Impl {
     if (line.path.points.size() < 20) return centre;
     *sides = b;
     return Path{resample(line.path.points, 1.0, true), true};
+  }
+
+  // whether every point of the lap the car drove lies within `within_m` of the closed line
+  // (true without a lap to check against). Chains through the cones can link two parts of the
+  // track that pass close to each other and close without the stretch between: measured on a
+  // generated hard trackdrive (seed 7059) whose fast laps cut a 60 m loop through its cones
+  static bool follows_lap(const Path& line, const std::vector<Vec2>& lap, double within_m) {
+    if (lap.size() < 2 || line.points.size() < 3) return true;
+    for (const Vec2& p : lap)
+      if (project_onto(line, p, 0, line.segment_count()).distance_m > within_m) return false;
+    return true;
   }
 
   // the speed caps along the racing line where its lane is narrower than kNarrowLaneM (a blue
@@ -699,6 +721,9 @@ struct Driver::Impl {
     // lap 1's trace ends where lap 1 did (the car goes on tracing until it joins the line)
     if (lap_trace.empty() && trace_lap_start && trace.size() > *trace_lap_start + 20)
       lap_trace.assign(trace.begin() + static_cast<long>(*trace_lap_start), trace.end());
+    // a circuit from the map that skips part of lap 1 (its chains jumped between two parts of
+    // the track that pass close) is not the circuit
+    if (circuit && !follows_lap(*circuit, lap_trace, kLapOffCircuitM)) circuit.reset();
     if (!circuit && !lap_trace.empty()) {
       const std::vector<Vec2> lap = smooth(resample(lap_trace, 1.0, true), 3, true);
       circuit = Path{resample(lap, 1.0, true), true};

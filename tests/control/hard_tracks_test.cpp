@@ -12,6 +12,7 @@
 #include "control/racing_line.hpp"
 #include "kinematic_loop.hpp"
 #include "test_tracks.hpp"
+#include "tracks/generator.hpp"
 
 namespace conesim::control {
 namespace {
@@ -132,6 +133,26 @@ TEST(HardTracks, NarrowStretchIsDrivenSlowlyAndClean) {
   EXPECT_GT(fast_clearance, 0.05);
   EXPECT_LE(narrow_speed, 7.0 + 1e-6);
   EXPECT_GT(straight_speed, 10.0);
+}
+
+TEST(HardTracks, FastLapsDriveTheWholeLapWhereTwoPartsOfTheTrackPassClose) {
+  // a generated hard trackdrive (seed 7059) where the lanes into and out of a 60 m loop pass 2-3
+  // m apart: boundary chains through the whole map close across that gap and leave the loop out.
+  // Unchecked, every fast lap cut through the cones there (26.5 s laps against 47 s for lap 1,
+  // five cones hit); the driver now keeps only a circuit that passes near all of its own lap 1
+  tracks::GeneratorParams g;
+  g.profile = tracks::GeneratorProfile::kHard;
+  const tracks::Track track = tracks::generate_circuit(7059, g);
+  const LoopResult r = drive(track, "hard trackdrive 7059");
+  expect_clean(r);
+  EXPECT_EQ(r.max_outside_m, 0.0) << "outside the lanes at (" << r.max_outside_at.x() << ", "
+                                  << r.max_outside_at.y() << ")";
+  ASSERT_EQ(r.gate_crossings.size(), 1u);
+  ASSERT_GE(r.gate_crossings[0].size(), 4u);
+  // the fast laps are as long as lap 1 would allow, not a shortcut's length
+  const double lap2 = r.gate_crossings[0][2] - r.gate_crossings[0][1];
+  const double lap3 = r.gate_crossings[0][3] - r.gate_crossings[0][2];
+  EXPECT_GT(std::min(lap2, lap3), 0.6 * (r.gate_crossings[0][1] - r.gate_crossings[0][0]));
 }
 
 }  // namespace

@@ -103,6 +103,32 @@ TEST(SpeedProfile, DeceleratesBeforeAHairpinWithinTheLimits) {
   EXPECT_DOUBLE_EQ(v.front(), 0.0);
 }
 
+TEST(SpeedProfile, TightTurnSpeedHoldsFromBeforeAFullLockHairpinOnTheRacingLine) {
+  // a hairpin at the car's full-lock radius on a closed path (a racing line): the car is at the
+  // tight-turn speed before the line reaches it (it turns in ahead of the line's tightest point),
+  // not only on it; the exploration's open paths get no lead; a hairpin wider than the tight-turn
+  // share of full lock is not capped at all
+  double hairpin_s = 0.0;
+  SpeedLimits limits;
+  limits.max_speed_mps = 16.0;
+  limits.max_lateral_accel_mps2 = 30.0;  // the cap, not the grip, limits the tight turn
+  limits.max_curvature = 1.0 / 3.0;
+  Path line = straight_hairpin_straight(60.0, 3.0, 30.0, &hairpin_s);
+  line.closed = true;  // back from the end of the second straight to the start
+  const SpeedProfile p = plan_speed(line, limits);
+  // (the curvature stencil blurs the hairpin's start by up to 1 m either way)
+  for (double before : {0.0, 0.25})
+    EXPECT_LE(p.speed_at(hairpin_s - before, line.length()), limits.tight_turn_speed_mps + 1e-9)
+        << before << " m before the hairpin";
+  EXPECT_GT(p.speed_at(hairpin_s - 4.0, line.length()), limits.tight_turn_speed_mps + 1.0);
+  line.closed = false;
+  EXPECT_GT(plan_speed(line, limits, 16.0, std::nullopt).speed_at(hairpin_s - 0.25),
+            limits.tight_turn_speed_mps + 0.5);
+  const Path wide = straight_hairpin_straight(60.0, 6.0, 30.0, &hairpin_s);
+  EXPECT_GT(plan_speed(wide, limits, 16.0, std::nullopt).speed_at(hairpin_s + 3.0),
+            2.0 * limits.tight_turn_speed_mps);
+}
+
 TEST(SpeedProfile, OpenPathEndsAtTheEndSpeed) {
   Path path;
   for (int i = 0; i <= 100; ++i) path.points.push_back({0.5 * i, 0.0});
