@@ -56,6 +56,8 @@ def browser(profile, *args):
     """Headless Chromium with software WebGL (SwiftShader through ANGLE: no GPU needed)."""
     cmd = [chromium(), "--headless", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
            "--no-first-run", "--no-default-browser-check", "--hide-scrollbars",
+           # a container's small /dev/shm: shared memory files go to /tmp instead
+           "--disable-dev-shm-usage",
            "--user-data-dir=" + profile, "--window-size=1280,800"]
     if os.geteuid() == 0:
         cmd.append("--no-sandbox")  # Chromium refuses to run as root with its sandbox
@@ -113,7 +115,11 @@ def page_state(html):
     if not m:
         return None
     text = m.group(1).replace("&quot;", '"').replace("&lt;", "<").replace("&gt;", ">")
-    return json.loads(text.replace("&amp;", "&"))
+    text = text.replace("&amp;", "&")
+    try:
+        return json.loads(text)
+    except ValueError:
+        return None  # the page's script stopped before it wrote its state
 
 
 def main():
