@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "core/error.hpp"
+#include "sim/perception_runner.hpp"
 #include "tracks/io.hpp"
 #include "vehicle_models/vehicle_params.hpp"
 
@@ -29,6 +30,7 @@ constexpr char kMagic[4] = {'C', 'S', 'R', 'P'};
 constexpr uint32_t kVersion = 1;
 constexpr uint8_t kRecordSweep = 1;
 constexpr uint8_t kRecordMap = 2;
+constexpr uint8_t kRecordDetections = 3;
 
 template <typename T>
 void put(std::string& out, const T& v) {
@@ -126,11 +128,14 @@ void ReplayRecorder::on_lidar(TimeUs delivered_us, const sdk::LidarSweep& sweep,
   const double range2 = settings_.lidar_range_m * settings_.lidar_range_m;
 
   // which points stay: every cone point in range, the ground thinned to fill the rest
-  auto label_of = [&](size_t i) -> uint8_t {
-    if (!labels || i >= labels->size()) return 0;
+  auto cone_of = [&](size_t i) -> int {
+    if (!labels || i >= labels->size()) return -1;
     const int id = (*labels)[i];
-    if (id < 0 || id >= static_cast<int>(cone_class_.size()) || cone_class_[id] < 0) return 0;
-    return class_code(static_cast<core::ConeClass>(cone_class_[id]));
+    return id < 0 || id >= static_cast<int>(cone_class_.size()) || cone_class_[id] < 0 ? -1 : id;
+  };
+  auto label_of = [&](size_t i) -> uint8_t {
+    const int id = cone_of(i);
+    return id < 0 ? 0 : class_code(static_cast<core::ConeClass>(cone_class_[id]));
   };
   std::vector<uint32_t> cone_points, ground_points;
   for (size_t i = 0; i < n; ++i) {
@@ -151,6 +156,7 @@ void ReplayRecorder::on_lidar(TimeUs delivered_us, const sdk::LidarSweep& sweep,
 
   std::vector<int16_t> xyz;
   std::vector<uint8_t> intensity, label;
+  std::vector<int16_t> cone;
   xyz.reserve(3 * kept.size());
   intensity.reserve(kept.size());
   label.reserve(kept.size());
@@ -169,6 +175,8 @@ void ReplayRecorder::on_lidar(TimeUs delivered_us, const sdk::LidarSweep& sweep,
     xyz.push_back(cm(v.z()));
     intensity.push_back(static_cast<uint8_t>(std::clamp(p.intensity, 0.f, 255.f)));
     label.push_back(label_of(i));
+    const int id = cone_of(i);
+    cone.push_back(static_cast<int16_t>(id <= 32767 ? id : -1));
   }
   std::string payload;
   put(payload, core::to_seconds(sweep.end_us));
@@ -178,8 +186,25 @@ void ReplayRecorder::on_lidar(TimeUs delivered_us, const sdk::LidarSweep& sweep,
   put_array(payload, xyz);
   put_array(payload, intensity);
   put_array(payload, label);
+  put_array(payload, cone);
   write_record(kRecordSweep, payload);
   ++sweeps_;
+}
+
+void ReplayRecorder::on_detections(const DeliveredDetections& frame) {
+  const auto& cones = frame.observations.cones;
+  std::string payload;
+  put(payload, core::to_seconds(frame.observations.stamp));
+  put(payload, static_cast<uint32_t>(cones.size()));
+  for (size_t i = 0; i < cones.size(); ++i)
+    put(payload,
+        static_cast<int32_t>(i < frame.labels.cone_id.size() ? frame.labels.cone_id[i] : -1));
+  for (const core::ConeObservation& o : cones) {
+    const core::Vec2 w = frame.capture_pose.transform(o.position);
+    put(payload, static_cast<float>(w.x()));
+    put(payload, static_cast<float>(w.y()));
+  }
+  write_record(kRecordDetections, payload);
 }
 
 void ReplayRecorder::write_map(const std::string& lane, double t_s,
@@ -259,15 +284,29 @@ ReplayLog read_replay_log(const fs::path& file) {
       take(&s.origin_x, 4, end);
       take(&s.origin_y, 4, end);
       take(&n, 4, end);
-      if (static_cast<uint64_t>(n) * 8 != end - at) fail("a sweep whose size does not match");
+      if (static_cast<uint64_t>(n) * 10 != end - at) fail("a sweep whose size does not match");
       s.xyz_cm.resize(3 * static_cast<size_t>(n));
       s.intensity.resize(n);
       s.label.resize(n);
+      s.cone.resize(n);
       take(s.xyz_cm.data(), 6 * static_cast<size_t>(n), end);
       take(s.intensity.data(), n, end);
       take(s.label.data(), n, end);
+      take(s.cone.data(), 2 * static_cast<size_t>(n), end);
       if (!std::isfinite(s.t_s)) fail("a sweep time that is not a number");
       log.sweeps.push_back(std::move(s));
+    } else if (type == kRecordDetections) {
+      ReplayLog::Detections d;
+      uint32_t n = 0;
+      take(&d.t_s, 8, end);
+      take(&n, 4, end);
+      if (static_cast<uint64_t>(n) * 12 != end - at) fail("detections whose size does not match");
+      d.cone.resize(n);
+      d.xy.resize(2 * static_cast<size_t>(n));
+      take(d.cone.data(), 4 * static_cast<size_t>(n), end);
+      take(d.xy.data(), 8 * static_cast<size_t>(n), end);
+      if (!std::isfinite(d.t_s)) fail("a detection time that is not a number");
+      log.detections.push_back(std::move(d));
     } else if (type == kRecordMap) {
       ReplayLog::MapSnapshot m;
       uint8_t name_size = 0;
@@ -296,6 +335,8 @@ ReplayLog read_replay_log(const fs::path& file) {
     std::stable_sort(snaps.begin(), snaps.end(),
                      [](const auto& a, const auto& b) { return a.t_s < b.t_s; });
   std::stable_sort(log.sweeps.begin(), log.sweeps.end(),
+                   [](const auto& a, const auto& b) { return a.t_s < b.t_s; });
+  std::stable_sort(log.detections.begin(), log.detections.end(),
                    [](const auto& a, const auto& b) { return a.t_s < b.t_s; });
   return log;
 }
@@ -518,7 +559,9 @@ fs::path write_replay_page(const fs::path& run_dir, const fs::path& three_js_dir
     std::vector<uint32_t> offset{0};
     std::vector<int16_t> xyz;
     std::vector<uint8_t> intensity, label;
+    std::vector<int16_t> cone;
     for (const ReplayLog::Sweep& s : log->sweeps) {
+      cone.insert(cone.end(), s.cone.begin(), s.cone.end());
       t.push_back(static_cast<float>(s.t_s));
       origin.push_back(s.origin_x);
       origin.push_back(s.origin_y);
@@ -534,6 +577,20 @@ fs::path write_replay_page(const fs::path& run_dir, const fs::path& three_js_dir
     blobs["sweep_xyz"] = b64(xyz);
     blobs["sweep_intensity"] = b64(intensity);
     blobs["sweep_label"] = b64(label);
+    blobs["sweep_cone"] = b64(cone);
+    std::vector<float> dt, dxy;
+    std::vector<int32_t> dcone;
+    std::vector<uint32_t> doff{0};
+    for (const ReplayLog::Detections& d : log->detections) {
+      dt.push_back(static_cast<float>(d.t_s));
+      dcone.insert(dcone.end(), d.cone.begin(), d.cone.end());
+      dxy.insert(dxy.end(), d.xy.begin(), d.xy.end());
+      doff.push_back(static_cast<uint32_t>(dcone.size()));
+    }
+    blobs["det_t"] = b64(dt);
+    blobs["det_offset"] = b64(doff);
+    blobs["det_cone"] = b64(dcone);
+    blobs["det_xy"] = b64(dxy);
     for (size_t k = 0; k < log->maps.size(); ++k) {
       const auto& [lane, snaps] = log->maps[k];
       std::vector<float> mt, xy;

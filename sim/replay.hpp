@@ -20,6 +20,8 @@
 
 namespace conesim::sim {
 
+struct DeliveredDetections;
+
 inline constexpr const char* kReplayLogFile = "replay.bin";
 inline constexpr const char* kReplayPageFile = "replay.html";
 
@@ -53,6 +55,9 @@ class ReplayRecorder : public SensorTap {
   void on_pose(core::TimeUs t, const core::Pose2& pose);
   void on_lidar(core::TimeUs delivered_us, const sdk::LidarSweep& sweep,
                 const std::vector<int>* labels) override;
+  /// A cone detection frame as the autonomy gets it: each detection's true cone (-1: a false
+  /// positive) and where it was put, for colouring the points by outcome.
+  void on_detections(const DeliveredDetections& frame);
   /// A SLAM lane's estimate taking effect (SlamRunner::set_map_observer).
   void on_map(const std::string& lane, core::TimeUs stamp, const core::Estimate& estimate);
   /// Writes each lane's last map and renames the log into place.
@@ -92,6 +97,14 @@ struct ReplayLog {
     std::vector<uint8_t> intensity;
     /// 0 ground, 1 + core::ConeClass of the cone the point hit.
     std::vector<uint8_t> label;
+    /// The id of the cone the point hit in the run's track, -1 ground.
+    std::vector<int16_t> cone;
+  };
+  struct Detections {
+    double t_s = 0.0;
+    /// Each detection's true cone id (-1 a false positive) and its place in the track frame.
+    std::vector<int32_t> cone;
+    std::vector<float> xy;
   };
   struct MapSnapshot {
     double t_s = 0.0;
@@ -99,6 +112,7 @@ struct ReplayLog {
     std::vector<uint8_t> cls;
   };
   std::vector<Sweep> sweeps;
+  std::vector<Detections> detections;
   /// Each lane's snapshots in time order, lanes in the order they first appear.
   std::vector<std::pair<std::string, std::vector<MapSnapshot>>> maps;
 };

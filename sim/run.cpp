@@ -745,7 +745,10 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
         // SLAM: every delivered frame updates the backend (at once, or taking effect after the
         // SLAM latency); the driver sees only its estimate
         slam->catch_up(t);
-        while (auto d = rig.take_detections(t)) slam->process(*d, t);
+        while (auto d = rig.take_detections(t)) {
+          if (recorder) recorder->on_detections(*d);
+          slam->process(*d, t);
+        }
         if (!slam->failure().empty()) {
           dnf_override = slam->failure();
           break;
@@ -755,6 +758,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       } else {
         if (noisy_perception) {
           while (auto d = rig.take_detections(t)) {
+            if (recorder) recorder->on_detections(*d);
             // a frame delivered after a newer one (delay jitter) is too old to use
             if (!s.faults.empty() && d->observations.stamp < latest_detections.stamp) continue;
             latest_detections = std::move(d->observations);
@@ -864,7 +868,9 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       if (tick > t && next_at_or_after(trajectory_period_us) >= tick)
         while (const DeliveredDetections* d = rig.next_detections(tick)) {
           if (!slam->input_final(*d, t)) break;
-          slam->process_ahead(*rig.take_detections(tick), tick);
+          auto frame = rig.take_detections(tick);
+          if (recorder) recorder->on_detections(*frame);
+          slam->process_ahead(std::move(*frame), tick);
         }
     }
     if (t >= hard_stop_us) {

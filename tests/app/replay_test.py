@@ -238,6 +238,10 @@ def check_all(top):
     sweep = state.get("sweep")
     if not sweep or sweep["points"] < 100 or not (T_CHECK - 1.0 <= sweep["t"] <= T_CHECK):
         fail("no LiDAR sweep of the last second shown: %s" % sweep)
+    outcome = (sweep or {}).get("outcome")
+    if not outcome or outcome["found"] < 1 or outcome["cones_with_points"] < outcome["found"] \
+            or abs(outcome["detections_t"] - sweep["t"]) > 0.06:
+        fail("no detection outcome for the shown sweep: %s" % outcome)
     for lane in ("graph", "ekf"):
         if state["maps"].get(lane, 0) < 5:
             fail("the %s map shows %s landmarks at %s s" % (lane, state["maps"].get(lane), T_CHECK))
