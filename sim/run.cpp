@@ -19,10 +19,12 @@
 #include "control/racing_line.hpp"
 #include "core/error.hpp"
 #include "laptime/qss.hpp"
+#include "sensors/lidar_config.hpp"
 #include "sim/autonomy.hpp"
 #include "sim/interrupt.hpp"
 #include "sim/json_text.hpp"
 #include "sim/lap_time_report.hpp"
+#include "sim/replay.hpp"
 #include "sim/report.hpp"
 #include "sim/slam_runner.hpp"
 #include "sim/track_commands.hpp"
@@ -43,6 +45,8 @@ namespace {
 constexpr double kHardStopMarginS = 60.0;
 // rows of trajectory.csv per sim second
 constexpr double kTrajectoryRateHz = 20.0;
+// how often the replay recorder takes the true pose, sim us
+constexpr core::TimeUs kReplayPosePeriodUs = 10'000;
 
 // rounds to a decimal step (0.1, 0.001) so the JSON shows the short form of the number
 double round_to(double v, double step) {
@@ -350,6 +354,59 @@ nlohmann::json faults_json(const std::vector<Fault>& faults, const FaultCounts& 
   return out;
 }
 
+// two observers of the raw data as one: the replay recorder and the caller's tap, each given
+// what it asked for (every Nth sweep by its own count)
+class TeeTap : public SensorTap {
+ public:
+  TeeTap(SensorTap& a, SensorTap& b) : SensorTap(merged(a.kinds(), b.kinds())), a_(a), b_(b) {}
+  void on_lidar(TimeUs delivered_us, const sdk::LidarSweep& sweep,
+                const std::vector<int>* labels) override {
+    const int64_t n = sweeps_++;
+    for (SensorTap* tap : {&a_, &b_})
+      if (tap->kinds().lidar && n % std::max(1, tap->kinds().lidar_every) == 0)
+        tap->on_lidar(delivered_us, sweep, tap->kinds().lidar_labels ? labels : nullptr);
+  }
+  void on_stereo(TimeUs delivered_us, const sdk::StereoFrame& frame) override {
+    for (SensorTap* tap : {&a_, &b_})
+      if (tap->kinds().camera) tap->on_stereo(delivered_us, frame);
+  }
+  void on_imu(TimeUs delivered_us, const sdk::ImuSample& sample) override {
+    for (SensorTap* tap : {&a_, &b_})
+      if (tap->kinds().imu) tap->on_imu(delivered_us, sample);
+  }
+  void on_wheels(TimeUs delivered_us, const sdk::WheelSpeeds& sample) override {
+    for (SensorTap* tap : {&a_, &b_})
+      if (tap->kinds().wheels) tap->on_wheels(delivered_us, sample);
+  }
+  void on_steering(TimeUs delivered_us, const sdk::SteeringSample& sample) override {
+    for (SensorTap* tap : {&a_, &b_})
+      if (tap->kinds().steering) tap->on_steering(delivered_us, sample);
+  }
+
+ private:
+  static SensorTapKinds merged(const SensorTapKinds& a, const SensorTapKinds& b) {
+    SensorTapKinds k;
+    k.lidar = a.lidar || b.lidar;
+    k.lidar_labels = a.lidar_labels || b.lidar_labels;
+    k.lidar_every = 1;
+    k.camera = a.camera || b.camera;
+    k.imu = a.imu || b.imu;
+    k.wheels = a.wheels || b.wheels;
+    k.steering = a.steering || b.steering;
+    return k;
+  }
+  SensorTap& a_;
+  SensorTap& b_;
+  int64_t sweeps_ = 0;
+};
+
+// the LiDAR's sweep rate when the run has one anyway (the replay never switches it on), else 0
+double run_lidar_sweep_hz(const Scenario& s) {
+  if (!s.sensors.lidar_enabled && s.perception != "lidar" && s.perception != "fused") return 0.0;
+  const auto config = sensors::lidar_preset(s.sensors.lidar_model);
+  return config ? 1.0 / core::to_seconds(config->sweep_period_us()) : 0.0;
+}
+
 }  // namespace
 
 std::string run_bounds_problem(const tracks::Track& track) {
@@ -569,7 +626,18 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     for (const tracks::Cone& c : track.cones)
       prior_map.push_back({c.id, c.cls, c.position, Eigen::Matrix2d::Identity() * 1e-6});
   }
-  SensorRig rig(s, track, car, options.dump, options.out_dir, options.sensor_tap);
+  // the replay's record, beside the caller's tap when there is one
+  std::unique_ptr<ReplayRecorder> recorder;
+  std::unique_ptr<TeeTap> tee;
+  SensorTap* tap = options.sensor_tap;
+  if (options.replay) {
+    recorder = std::make_unique<ReplayRecorder>(options.out_dir, track, run_lidar_sweep_hz(s));
+    if (tap)
+      tee = std::make_unique<TeeTap>(*recorder, *tap), tap = tee.get();
+    else if (recorder->kinds().lidar)
+      tap = recorder.get();
+  }
+  SensorRig rig(s, track, car, options.dump, options.out_dir, tap);
   // the car's own sensors for the tap: a feed of its own, with SLAM's seed and noise (so the
   // samples SLAM's odometry integrates)
   std::optional<VehicleSensorFeed> tap_feed;
@@ -587,6 +655,11 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   std::unique_ptr<sdk::Driver> driver;
   try {
     if (s.slam != "none") slam = std::make_unique<SlamRunner>(s, track, car);
+    if (slam && recorder)
+      slam->set_map_observer(
+          [r = recorder.get()](const std::string& lane, TimeUs stamp, const core::Estimate& e) {
+            r->on_map(lane, stamp, e);
+          });
     if (options.make_driver)
       driver = options.make_driver(run_info->info);
     else if (s.driver_plugin)
@@ -640,6 +713,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   std::vector<TrajectoryError> trajectory_errors;
 
   TimeUs t = 0;
+  TimeUs next_replay_pose_us = 0;
   core::VehicleCommand command;
   auto last_progress = wall_start;
   int interrupted_by = 0;
@@ -671,7 +745,10 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
         // SLAM: every delivered frame updates the backend (at once, or taking effect after the
         // SLAM latency); the driver sees only its estimate
         slam->catch_up(t);
-        while (auto d = rig.take_detections(t)) slam->process(*d, t);
+        while (auto d = rig.take_detections(t)) {
+          if (recorder) recorder->on_detections(*d);
+          slam->process(*d, t);
+        }
         if (!slam->failure().empty()) {
           dnf_override = slam->failure();
           break;
@@ -681,6 +758,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       } else {
         if (noisy_perception) {
           while (auto d = rig.take_detections(t)) {
+            if (recorder) recorder->on_detections(*d);
             // a frame delivered after a newer one (delay jitter) is too old to use
             if (!s.faults.empty() && d->observations.stamp < latest_detections.stamp) continue;
             latest_detections = std::move(d->observations);
@@ -764,6 +842,11 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
         trajectory_odometry.push_back(slam->odometry_pose_now(t));
       }
     }
+    // the replay places each LiDAR point where the car was when it was fired
+    if (recorder && t >= next_replay_pose_us) {
+      recorder->on_pose(t, car.truth().pose);
+      next_replay_pose_us = t + kReplayPosePeriodUs;
+    }
     // MuJoCo's sensors only on the steps whose IMU sample SLAM's odometry takes
     car.step(command,
              (slam && slam->imu_due(t + step_us)) || (tap_feed && tap_feed->imu_due(t + step_us)));
@@ -785,7 +868,9 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       if (tick > t && next_at_or_after(trajectory_period_us) >= tick)
         while (const DeliveredDetections* d = rig.next_detections(tick)) {
           if (!slam->input_final(*d, t)) break;
-          slam->process_ahead(*rig.take_detections(tick), tick);
+          auto frame = rig.take_detections(tick);
+          if (recorder) recorder->on_detections(*frame);
+          slam->process_ahead(std::move(*frame), tick);
         }
     }
     if (t >= hard_stop_us) {
@@ -994,6 +1079,12 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   }
   // report.html from metrics.json, verdict first: every run has one, pictures or not
   picture("report.html", [&] { write_run_report(options.out_dir, m); });
+  if (recorder) {
+    picture(kReplayPageFile, [&] {
+      recorder->finish();
+      write_replay_page(options.out_dir, default_three_js_dir());
+    });
+  }
   return result;
 }
 

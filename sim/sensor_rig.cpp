@@ -377,7 +377,8 @@ void SensorRig::collect_sweep() {
   }
 
   // the tap gets the sweep as a perception plug-in does, when its latency has passed
-  if (tap_ && tap_->kinds().lidar) {
+  if (tap_ && tap_->kinds().lidar &&
+      tap_lidar_sweeps_++ % std::max(1, tap_->kinds().lidar_every) == 0) {
     sdk::LidarSweep sweep;
     sweep.stamp_us = scan.cloud.stamp;
     sweep.end_us = result.end_us;

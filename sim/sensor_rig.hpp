@@ -128,6 +128,8 @@ class SensorRig {
   // the LiDAR's mount, and the tap's point buffer (reused from sweep to sweep)
   core::Pose3 lidar_mount_;
   std::vector<sdk::LidarPoint> tap_points_;
+  // the sweeps delivered so far that the tap could have had (SensorTapKinds::lidar_every)
+  int64_t tap_lidar_sweeps_ = 0;
 
   std::unique_ptr<sensors::ConeSensor> cone_sensor_;
   // the tracker on cone-sensor frames (`sensors.cone_sensor.track`), null when off, with the

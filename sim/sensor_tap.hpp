@@ -17,6 +17,9 @@ struct SensorTapKinds {
   bool lidar = false;
   /// The true cone id of each LiDAR point (-1 ground): ground truth, only when asked for.
   bool lidar_labels = false;
+  /// Deliver only every Nth LiDAR sweep (the first, the N+1st, ...): a recorder that keeps a
+  /// few sweeps a second skips converting the others.
+  int lidar_every = 1;
   bool camera = false;
   bool imu = false;
   bool wheels = false;

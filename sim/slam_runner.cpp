@@ -373,6 +373,7 @@ void SlamRunner::abandon() {
 void SlamRunner::take_in(Lane& lane, DeliveredDetections frame, UpdateResult update) {
   if (lane.driving && failure_.empty()) failure_ = update.failure;
   lane.last_estimate = update.estimate;
+  if (map_observer_) map_observer_(lane.name, frame.observations.stamp, update.estimate);
   if (lane.driving) {
     last_estimate_ = update.estimate;
     last_observations_ = frame.observations;

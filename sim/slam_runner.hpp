@@ -9,6 +9,7 @@
 
 #include <deque>
 #include <filesystem>
+#include <functional>
 #include <future>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -115,6 +116,12 @@ class SlamRunner {
   /// The driving lane's scorer (tests).
   const SlamScorer& scorer() const;
 
+  /// Called on the run's thread with each lane's estimate as it takes effect (the lane's name,
+  /// the frame's stamp): a replay recorder keeps the map growing from it. Unset: nothing.
+  using MapObserver =
+      std::function<void(const std::string& lane, core::TimeUs stamp, const core::Estimate&)>;
+  void set_map_observer(MapObserver observer) { map_observer_ = std::move(observer); }
+
  private:
   struct Lane;
   struct UpdateResult;
@@ -150,6 +157,7 @@ class SlamRunner {
   core::ConeObservations last_observations_;
   core::Pose2 last_frame_pose_;
   std::string failure_;
+  MapObserver map_observer_;
   // the newest frame stamp processed, and the frames dropped for coming after a newer one
   core::TimeUs last_frame_stamp_ = -1;
   int frames_out_of_order_ = 0;

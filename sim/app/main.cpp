@@ -16,6 +16,7 @@
 #include "sim/interrupt.hpp"
 #include "sim/json_text.hpp"
 #include "sim/regress.hpp"
+#include "sim/replay.hpp"
 #include "sim/run.hpp"
 #include "sim/scenario.hpp"
 #include "sim/track_commands.hpp"
@@ -303,6 +304,9 @@ void add_run_command(CLI::App& app, int& status) {
       ->check(CLI::IsMember({"lidar", "camera", "detections"}));
   cmd->add_option("--dump-every", *dump_every, "Dump every Nth frame of each sensor")
       ->check(CLI::Range(1, 1000000));
+  auto replay = std::make_shared<bool>(false);
+  cmd->add_flag("--replay", *replay,
+                "Record the run for its 3D replay and write replay.html (see `conesim view`)");
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;
     sim::install_interrupt_handlers();
@@ -336,6 +340,7 @@ void add_run_command(CLI::App& app, int& status) {
     options.plot = !*no_plot;
     options.dump.sensors = {dump->begin(), dump->end()};
     options.dump.every = *dump_every;
+    options.replay = *replay;
     std::error_code ec;
     const bool existed = !out->empty() && fs::exists(*out, ec);
     try {
@@ -388,6 +393,23 @@ void add_run_command(CLI::App& app, int& status) {
     for (const auto& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
     std::printf("%s\n", options.out_dir.string().c_str());
     status = r.passed ? 0 : 1;
+  });
+}
+
+// `conesim view RUN_DIR`
+void add_view_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand(
+      "view",
+      "Write RUN_DIR/replay.html: a 3D replay of a run that opens from disk in a browser (the "
+      "LiDAR and the growing SLAM maps when the run was made with --replay)");
+  auto dir = std::make_shared<fs::path>();
+  cmd->add_option("RUN_DIR", *dir, "A run folder (conesim run --out)")->required();
+  cmd->callback([=] {
+    const fs::path page =
+        conesim::sim::write_replay_page(*dir, conesim::sim::default_three_js_dir());
+    std::error_code ec;
+    std::printf("%s (%.1f MB)\n", page.string().c_str(),
+                static_cast<double>(fs::file_size(page, ec)) / 1e6);
   });
 }
 
@@ -600,6 +622,7 @@ int main(int argc, char** argv) {
   int status = 0;
   add_track_commands(app, status);
   add_run_command(app, status);
+  add_view_command(app);
   add_regress_command(app, status, argc, argv);
   add_compare_command(app, status, argc, argv);
   add_vehicle_commands(app);
