@@ -1014,9 +1014,6 @@ std::vector<RunRow> parse_baseline(const std::string& text, const std::string& n
   return rows;
 }
 
-namespace {
-
-// the runs this call runs: a shard's slice, the ids asked for, or all
 std::vector<RegressionRun> selected_runs(const RegressionPlan& plan, const RegressOptions& o) {
   std::vector<RegressionRun> runs;
   if (!o.only_ids.empty()) {
@@ -1042,6 +1039,8 @@ std::vector<RegressionRun> selected_runs(const RegressionPlan& plan, const Regre
   for (size_t i : shards[static_cast<size_t>(o.shard.index - 1)]) runs.push_back(plan.runs[i]);
   return runs;
 }
+
+namespace {
 
 // plan.json: the whole run list (each run's shard), how this call was made, what it runs
 json plan_json(const fs::path& self, const RegressionPlan& plan, const RegressOptions& o) {
@@ -1090,6 +1089,8 @@ struct MergeParts {
   const std::vector<std::string>* missing = nullptr;
   const std::map<std::string, std::string>* run_folders = nullptr;
   json shards;
+  /// the commit the shards' runs were built from (not the merging checkout's)
+  std::optional<std::string> commit;
 };
 
 // the verdicts against the baseline, the three summaries and the table; the exit status
@@ -1102,6 +1103,7 @@ int write_summaries(std::vector<RunRow>& rows, const RegressionPlan& plan, const
   const BaselineComparison* c = comparison ? &*comparison : nullptr;
   json summary = summary_json(rows, plan, o, wall_s, c);
   if (!merge.shards.is_null()) summary["shards"] = merge.shards;
+  if (merge.commit) summary["commit"] = *merge.commit;
   std::ofstream(o.out_dir / "summary.json") << json_text(summary, 2) << "\n";
   std::ofstream(o.out_dir / "junit.xml") << junit_xml(rows, wall_s, c, merge.missing);
   std::ofstream(o.out_dir / "summary.html")
@@ -1276,7 +1278,7 @@ json read_json(const fs::path& file, const std::string& what) {
 // the regress arguments of a shard without what makes it that shard (--shard, --out, --resume,
 // --only-missing): the same run list, whole
 std::vector<std::string> study_args(const std::vector<std::string>& args) {
-  return without_options(args, {"--shard", "--out", "--only-missing"}, {"--resume"});
+  return without_options(args, {"--shard", "--out", "--only-missing", "--jobs", "-j"}, {"--resume"});
 }
 
 }  // namespace
@@ -1351,6 +1353,7 @@ int merge_regression(const MergeOptions& m, std::ostream& out, std::ostream& pro
     json plan;
     std::optional<std::vector<RunRow>> rows;
     double wall_s = 0.0;
+    std::string commit;
   };
   std::vector<Part> parts;
   const json* whole = nullptr;
@@ -1364,7 +1367,9 @@ int merge_regression(const MergeOptions& m, std::ostream& out, std::ostream& pro
       const std::string text = read_whole(dir / "summary.json", "the shard's summary.json");
       p.rows = parse_baseline(text, (dir / "summary.json").string());
       try {
-        p.wall_s = json::parse(text).value("wall_time_s", 0.0);
+        const json summary = json::parse(text);
+        p.wall_s = summary.value("wall_time_s", 0.0);
+        p.commit = summary.value("commit", std::string());
       } catch (const json::exception&) {
       }
     }
@@ -1460,6 +1465,13 @@ int merge_regression(const MergeOptions& m, std::ostream& out, std::ostream& pro
     rerun += " --only-missing " + shell_word(fs::absolute(m.out_dir).lexically_normal().string());
   }
   MergeParts merge;
+  std::set<std::string> commits;
+  for (const Part& p : parts)
+    if (p.rows) commits.insert(p.commit);
+  if (!commits.empty()) merge.commit = *commits.begin();
+  if (commits.size() > 1)
+    progress << "note: the folders' runs come from different builds (" << join({commits.begin(), commits.end()}, ", ")
+             << "): summary.json names " << *merge.commit << "\n";
   merge.missing = &missing;
   merge.run_folders = &folders;
   merge.shards = {{"count", (*whole)["shard"].is_object() ? (*whole)["shard"].value("count", 0) : 0},

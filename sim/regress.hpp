@@ -116,6 +116,10 @@ double run_cost(core::EventType event, double lap_length_m, bool slam_driving, i
 /// the most expensive run.
 std::vector<std::vector<size_t>> shard_runs(const std::vector<double>& costs, int count);
 
+/// The runs of the plan this call runs, in run order: those of options.only_ids, else the
+/// slice of options.shard, else all. Throws core::InputError for an id not in the plan.
+std::vector<RegressionRun> selected_runs(const RegressionPlan& plan, const RegressOptions& options);
+
 /// Parses "1,2,3", "1-5" or a mix ("1-3,7"). Throws core::InputError on anything else.
 std::vector<unsigned long long> parse_seeds(const std::string& text);
 

@@ -501,10 +501,17 @@ void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
     }
     if (*list) {
       const sim::RegressionPlan plan = sim::plan_regression(self, *o);
-      for (const auto& r : plan.runs) std::cout << r.id() << "  " << r.dir.string() << "\n";
+      const std::vector<sim::RegressionRun> runs = sim::selected_runs(plan, *o);
+      double cost = 0.0;
+      for (const auto& r : runs) {
+        std::cout << r.id() << "  " << r.dir.string() << "  cost " << r.cost << "\n";
+        cost += r.cost;
+      }
       for (const auto& t : plan.skipped)
         std::cout << "skipped " << t.track << ": " << t.reason << "\n";
-      std::cout << plan.runs.size() << " runs\n";
+      std::cout << runs.size() << " runs";
+      if (o->shard.active()) std::cout << " of " << plan.runs.size() << " (shard " << o->shard.text() << ")";
+      std::cout << ", expected cost " << cost << "\n";
       return;
     }
     status = sim::run_regression(self, *o, std::cout, std::cerr);

@@ -40,6 +40,16 @@ grep -q "2 of 6 runs" "$tmp/rerun.log" || fail "the rerun did not run only the 2
   >"$tmp/m3.log" 2>&1 || fail "shards + rerun do not equal the whole: $(cat "$tmp/m3.log")"
 grep -q '"missing_runs": \[\]' "$tmp/m2/summary.json" || fail "the rerun did not complete the merge"
 
+# --list with --shard: that shard's runs with their expected cost; the shards' lists make the whole
+total=0
+for k in 1 2 3; do
+  "$conesim" regress "${study[@]}" --shard "$k/3" --list --out "$tmp/list" >"$tmp/list$k.log" 2>&1 ||
+    fail "--list --shard $k/3: $(cat "$tmp/list$k.log")"
+  grep -q "^2 runs of 6 (shard $k/3), expected cost" "$tmp/list$k.log" || fail "--list --shard $k/3: $(cat "$tmp/list$k.log")"
+  total=$((total + $(grep -c '  cost [0-9.]*$' "$tmp/list$k.log")))
+done
+[ "$total" = 6 ] || fail "the shards' lists hold $total runs, not 6"
+
 # bad input: the option and what it expects
 for bad in 0/4 5/4 x; do
   if "$conesim" regress acceleration --shard "$bad" --list >"$tmp/bad.log" 2>&1; then fail "--shard $bad taken"; fi

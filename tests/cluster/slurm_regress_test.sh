@@ -51,8 +51,9 @@ cmp -s <(sed 's/time="[^"]*"//g; s/timestamp="[^"]*"//' "$tmp/cluster/junit.xml"
   fail "the merge job's junit.xml differs from the unsharded one"
 echo "sharded through Slurm == unsharded after $((SECONDS - started)) s"
 
-# 2. one shard cancelled before it ran: its runs are missing, the rerun command completes them
-"$conesim" regress "${study[@]}" --slurm --shards 3 --cpus-per-task 2 --time 10 \
+# 2. one shard cancelled before it ran (each task takes every CPU of the node, so task 1 waits
+# for task 0): its runs are missing, the rerun command completes them
+"$conesim" regress "${study[@]}" --slurm --shards 3 --cpus-per-task "$(nproc)" --time 10 \
   --out "$tmp/cancel" >"$tmp/submit2.log" 2>&1 || fail "submit: $(cat "$tmp/submit2.log")"
 array="$(sed -n 's/^shards job //p' "$tmp/submit2.log")"
 scancel "${array}_1"

@@ -465,7 +465,7 @@ TEST(Merge, ADeadShardsRunsAreMissingWithTheCommandThatRunsOnlyThem) {
     EXPECT_NE(out.str().find("missing (no result): " + id), std::string::npos) << out.str();
     EXPECT_NE(merged["shards"]["missing_runs"].dump().find(id), std::string::npos);
   }
-  // the rerun: the shards' arguments without --shard and --out, and the merge folder
+  // the rerun: the shards' arguments without --shard, --out and --jobs, and the merge folder
   const std::string rerun = merged["shards"]["rerun"];
   EXPECT_EQ(rerun, "/opt/conesim regress trackdrive --seeds 1-7 --only-missing " +
                        fs::absolute(m.out_dir).lexically_normal().string());
