@@ -494,11 +494,6 @@ void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
       return;
     }
     if (o->out_dir.empty()) o->out_dir = sim::make_run_dir("runs", "regress");
-    if (*use_slurm) {
-      if (cmd->count("--jobs")) slurm->jobs = o->jobs;
-      status = sim::submit_regression_to_slurm(self, *o, *slurm, std::cout, std::cerr);
-      return;
-    }
     if (*list) {
       const sim::RegressionPlan plan = sim::plan_regression(self, *o);
       const std::vector<sim::RegressionRun> runs = sim::selected_runs(plan, *o);
@@ -512,6 +507,12 @@ void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
       std::cout << runs.size() << " runs";
       if (o->shard.active()) std::cout << " of " << plan.runs.size() << " (shard " << o->shard.text() << ")";
       std::cout << ", expected cost " << cost << "\n";
+      return;
+    }
+    // after --list, which only shows the runs: --slurm --list submits nothing
+    if (*use_slurm) {
+      if (cmd->count("--jobs")) slurm->jobs = o->jobs;
+      status = sim::submit_regression_to_slurm(self, *o, *slurm, std::cout, std::cerr);
       return;
     }
     status = sim::run_regression(self, *o, std::cout, std::cerr);
