@@ -57,7 +57,17 @@ struct PlannedTrack {
   std::string label;
   fs::path file;
   EventType event = EventType::kTrackdrive;
+  /// the centre line's length (a closed circuit's lap), for the runs' expected cost
+  double length_m = 0.0;
 };
+
+double centre_line_length(const tracks::Track& t) {
+  double length = 0.0;
+  const size_t n = t.centre_line.size();
+  for (size_t i = 1; i < n; ++i) length += (t.centre_line[i] - t.centre_line[i - 1]).norm();
+  if (t.closed && n > 2) length += (t.centre_line[0] - t.centre_line[n - 1]).norm();
+  return length;
+}
 
 // a short log whole, its lines joined by " / " (at most 300 characters)
 std::string log_text(const fs::path& file) {
@@ -91,7 +101,7 @@ std::optional<PlannedTrack> read_planned(const fs::path& file, const std::string
                                          std::vector<SkippedTrack>* skipped) {
   try {
     const tracks::Track t = tracks::read_track(file);
-    return PlannedTrack{label, file, tracks::infer_event(t)};
+    return PlannedTrack{label, file, tracks::infer_event(t), centre_line_length(t)};
   } catch (const std::exception& e) {
     if (!skipped) throw;
     skipped->push_back({label, e.what()});
@@ -274,6 +284,61 @@ std::string RegressionRun::id() const {
          std::to_string(seed);
 }
 
+std::string Shard::text() const { return std::to_string(index) + "/" + std::to_string(count); }
+
+Shard parse_shard(const std::string& text, const std::string& option) {
+  auto bad = [&](const std::string& why) {
+    return InputError(option, 0,
+                      "expected I/N, shard I of N with 1 <= I <= N (e.g. 2/4), got '" + text +
+                          "'" + (why.empty() ? "" : ": " + why));
+  };
+  const size_t slash = text.find('/');
+  if (slash == std::string::npos) throw bad("");
+  auto number = [&](const std::string& s) {
+    if (s.empty() || s.size() > 6 || s.find_first_not_of("0123456789") != std::string::npos)
+      throw bad("");
+    return std::stoi(s);
+  };
+  Shard shard{number(text.substr(0, slash)), number(text.substr(slash + 1))};
+  if (shard.count < 1) throw bad("N must be at least 1");
+  if (shard.index < 1) throw bad("shards count from 1");
+  if (shard.index > shard.count) throw bad("there are only " + std::to_string(shard.count) + " shards");
+  return shard;
+}
+
+double run_cost(EventType event, double lap_length_m, bool slam_driving, int slam_shadows,
+                bool raw_perception) {
+  double laps = 1.0, usual_m = 300.0;
+  switch (event) {
+    case EventType::kAcceleration: usual_m = 75.0; break;
+    case EventType::kSkidpad: laps = 4.0; usual_m = 60.0; break;
+    case EventType::kAutocross: break;
+    case EventType::kTrackdrive: laps = 10.0; break;
+  }
+  const double length = lap_length_m > 1.0 ? lap_length_m : usual_m;
+  double cost = laps * length / 300.0 * (slam_driving ? 1.5 : 1.0) + 0.5 * slam_shadows;
+  if (raw_perception) cost *= 3.0;
+  return std::max(0.001, std::round(cost * 1000.0) / 1000.0);
+}
+
+std::vector<std::vector<size_t>> shard_runs(const std::vector<double>& costs, int count) {
+  if (count < 1) throw std::invalid_argument("shard_runs: count must be at least 1");
+  std::vector<size_t> order(costs.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return costs[a] > costs[b]; });
+  std::vector<std::vector<size_t>> shards(static_cast<size_t>(count));
+  std::vector<double> load(shards.size(), 0.0);
+  for (size_t i : order) {
+    const size_t k =
+        static_cast<size_t>(std::min_element(load.begin(), load.end()) - load.begin());
+    shards[k].push_back(i);
+    load[k] += costs[i];
+  }
+  for (auto& s : shards) std::sort(s.begin(), s.end());
+  return shards;
+}
+
 std::vector<unsigned long long> parse_seeds(const std::string& text) {
   std::vector<unsigned long long> seeds;
   std::stringstream in(text);
@@ -352,6 +417,11 @@ RegressionPlan plan_regression(const fs::path& self, const RegressOptions& o) {
     // every scenario loads with the overrides: a typo stops here, not in every run
     const Scenario s = load_scenario(find_scenario(name), o.sets);
     const std::string stem = fs::path(name).stem().string();
+    const bool raw = s.perception == "lidar" || s.perception == "stereo" || s.perception == "fused";
+    auto cost = [&](double length_m) {
+      return run_cost(s.event, length_m, s.slam != "none", static_cast<int>(s.slam_shadows.size()),
+                      raw);
+    };
     std::vector<unsigned long long> seeds = o.seeds;
     if (seeds.empty()) {
       seeds = {1};
@@ -361,7 +431,7 @@ RegressionPlan plan_regression(const fs::path& self, const RegressOptions& o) {
     }
     if (!on_given_tracks) {
       for (unsigned long long seed : seeds)
-        plan.runs.push_back({stem, "", "", seed, stem + "-s" + std::to_string(seed)});
+        plan.runs.push_back({stem, "", "", seed, stem + "-s" + std::to_string(seed), cost(0.0)});
       continue;
     }
     // without scenarios named, each track runs its own event only
@@ -373,7 +443,8 @@ RegressionPlan plan_regression(const fs::path& self, const RegressOptions& o) {
       }
       for (unsigned long long seed : seeds)
         plan.runs.push_back({stem, t.label, t.file, seed,
-                             fs::path(stem) / (flat(t.label) + "-s" + std::to_string(seed))});
+                             fs::path(stem) / (flat(t.label) + "-s" + std::to_string(seed)),
+                             cost(t.length_m)});
     }
   }
   if (plan.runs.empty())
@@ -729,7 +800,8 @@ json summary_json(const std::vector<RunRow>& rows, const RegressionPlan& plan,
 }
 
 std::string junit_xml(const std::vector<RunRow>& rows, double wall_s,
-                      const BaselineComparison* comparison) {
+                      const BaselineComparison* comparison,
+                      const std::vector<std::string>* missing) {
   int failures = 0;
   int skipped = 0;
   for (const RunRow& r : rows) {
@@ -738,7 +810,9 @@ std::string junit_xml(const std::vector<RunRow>& rows, double wall_s,
   }
   const bool medians_regressed = comparison && !comparison->median_regressions.empty();
   failures += medians_regressed;
-  const size_t tests = rows.size() + (comparison ? 1 : 0);
+  const size_t n_missing = missing ? missing->size() : 0;
+  failures += static_cast<int>(n_missing);
+  const size_t tests = rows.size() + (comparison ? 1 : 0) + n_missing;
   std::ostringstream x;
   x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
     << "<testsuites name=\"conesim regress\" tests=\"" << tests << "\" failures=\"" << failures
@@ -770,6 +844,12 @@ std::string junit_xml(const std::vector<RunRow>& rows, double wall_s,
     if (!r.dnf_reason.empty()) x << xml_escape("\nDNF: " + r.dnf_reason);
     x << xml_escape("\nrun folder: " + r.dir) << "</failure>\n    </testcase>\n";
   }
+  for (size_t k = 0; k < n_missing; ++k)
+    x << "    <testcase classname=\"missing\" name=\"" << xml_escape((*missing)[k])
+      << "\" time=\"0\">\n      <failure type=\"missing\" message=\"no result: its shard "
+         "wrote no summary\">"
+      << xml_escape((*missing)[k]) << ": no result: its shard wrote no summary</failure>\n"
+      << "    </testcase>\n";
   if (comparison) {
     x << "    <testcase classname=\"baseline\" name=\"medians\" time=\"0\"";
     if (medians_regressed) {
@@ -787,14 +867,17 @@ std::string junit_xml(const std::vector<RunRow>& rows, double wall_s,
 
 std::string summary_html(const std::vector<RunRow>& rows, const RegressionPlan& plan,
                          const RegressOptions& o, double wall_s,
-                         const BaselineComparison* comparison) {
+                         const BaselineComparison* comparison,
+                         const std::vector<std::string>* missing,
+                         const std::map<std::string, std::string>* run_folders) {
   int passed = 0, refused = 0;
   for (const RunRow& r : rows) {
     passed += r.passed;
     refused += r.refused;
   }
   const bool all_good = passed + refused == static_cast<int>(rows.size()) &&
-                        (!comparison || comparison->regressions.empty());
+                        (!comparison || comparison->regressions.empty()) &&
+                        (!missing || missing->empty());
   std::ostringstream h;
   h << "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>conesim regress</title>\n"
     << "<style>" << report_css() << "</style></head><body>\n<h1>conesim regress</h1>\n"
@@ -802,8 +885,15 @@ std::string summary_html(const std::vector<RunRow>& rows, const RegressionPlan& 
     << rows.size() << " passed"
     << (refused ? ", " + std::to_string(refused) + " refused (not drivable by this car)" : "")
     << (comparison ? ", " + std::to_string(comparison->regressions.size()) + " regressions" : "")
+    << (missing && !missing->empty() ? ", " + std::to_string(missing->size()) + " missing" : "")
     << "</div>\n<p><code>" << html_escape(o.command_line) << "</code><br>" << fixed(wall_s, 0)
     << " s wall time with " << o.jobs << " jobs, conesim " << CONESIM_VERSION << "</p>\n";
+  if (missing && !missing->empty()) {
+    h << "<h2>Runs missing (" << missing->size()
+      << "): their shard wrote no summary</h2>\n<ul>\n";
+    for (const std::string& m : *missing) h << "<li>" << html_escape(m) << "</li>\n";
+    h << "</ul>\n";
+  }
   if (!plan.skipped.empty()) {
     h << "<h2>Tracks skipped</h2>\n<ul>\n";
     for (const SkippedTrack& s : plan.skipped)
@@ -837,7 +927,10 @@ std::string summary_html(const std::vector<RunRow>& rows, const RegressionPlan& 
         std::to_string(r.cones_hit) + " hit, " + std::to_string(r.off_course) + " off";
     const std::string where = events_text(r);
     if (!where.empty()) penalties += ": " + where;
-    const fs::path report = fs::path(r.dir) / "report.html";
+    fs::path report = fs::path(r.dir) / "report.html";
+    if (run_folders)
+      if (const auto it = run_folders->find(r.id); it != run_folders->end())
+        report = fs::path(it->second) / "report.html";
     h << "<tr"
       << (r.refused   ? " class=\"regressed\""
           : !r.passed ? " class=\"failed\""
@@ -921,6 +1014,121 @@ std::vector<RunRow> parse_baseline(const std::string& text, const std::string& n
   return rows;
 }
 
+std::vector<RegressionRun> selected_runs(const RegressionPlan& plan, const RegressOptions& o) {
+  std::vector<RegressionRun> runs;
+  if (!o.only_ids.empty()) {
+    std::map<std::string, const RegressionRun*> by_id;
+    for (const RegressionRun& r : plan.runs) by_id[r.id()] = &r;
+    std::set<std::string> wanted;
+    for (const std::string& id : o.only_ids) {
+      if (!by_id.count(id))
+        throw InputError("--only-missing", 0,
+                         "the run '" + id +
+                             "' is not in this run list: give the scenarios, tracks, seeds and "
+                             "--set values the shards were given");
+      wanted.insert(id);
+    }
+    for (const RegressionRun& r : plan.runs)
+      if (wanted.count(r.id())) runs.push_back(r);
+    return runs;
+  }
+  if (!o.shard.active()) return plan.runs;
+  std::vector<double> costs;
+  for (const RegressionRun& r : plan.runs) costs.push_back(r.cost);
+  const std::vector<std::vector<size_t>> shards = shard_runs(costs, o.shard.count);
+  for (size_t i : shards[static_cast<size_t>(o.shard.index - 1)]) runs.push_back(plan.runs[i]);
+  return runs;
+}
+
+namespace {
+
+// plan.json: the whole run list (each run's shard), how this call was made, what it runs
+json plan_json(const fs::path& self, const RegressionPlan& plan, const RegressOptions& o) {
+  std::vector<size_t> shard_of(plan.runs.size(), 0);
+  if (o.shard.active()) {
+    std::vector<double> costs;
+    for (const RegressionRun& r : plan.runs) costs.push_back(r.cost);
+    const auto shards = shard_runs(costs, o.shard.count);
+    for (size_t k = 0; k < shards.size(); ++k)
+      for (size_t i : shards[k]) shard_of[i] = k + 1;
+  }
+  json runs = json::array();
+  for (size_t i = 0; i < plan.runs.size(); ++i) {
+    json r = {{"id", plan.runs[i].id()},
+              {"dir", plan.runs[i].dir.generic_string()},
+              {"cost", plan.runs[i].cost}};
+    if (o.shard.active()) r["shard"] = shard_of[i];
+    runs.push_back(r);
+  }
+  json selected = json::array();
+  for (const RegressionRun& r : selected_runs(plan, o)) selected.push_back(r.id());
+  json skipped = json::array();
+  for (const SkippedTrack& s : plan.skipped)
+    skipped.push_back({{"track", s.track}, {"reason", s.reason}});
+  return {{"tool", "conesim regress plan"},
+          {"version", CONESIM_VERSION},
+          {"binary", self.string()},
+          {"args", o.args},
+          {"shard", o.shard.active() ? json{{"index", o.shard.index}, {"count", o.shard.count}}
+                                     : json(nullptr)},
+          {"jobs", o.jobs},
+          {"baseline", o.baseline ? json(fs::absolute(*o.baseline).string()) : json(nullptr)},
+          {"event_mismatches_left_out", plan.event_mismatches},
+          {"skipped_tracks", skipped},
+          {"selected", selected},
+          {"runs", runs}};
+}
+
+}  // namespace
+
+namespace {
+
+// a merge's additions to the summaries: runs with no result, where each run's folder is, and
+// summary.json's `shards`
+struct MergeParts {
+  const std::vector<std::string>* missing = nullptr;
+  const std::map<std::string, std::string>* run_folders = nullptr;
+  json shards;
+  /// the commit the shards' runs were built from (not the merging checkout's)
+  std::optional<std::string> commit;
+};
+
+// the verdicts against the baseline, the three summaries and the table; the exit status
+int write_summaries(std::vector<RunRow>& rows, const RegressionPlan& plan, const RegressOptions& o,
+                    double wall_s, const std::vector<RunRow>* baseline, const MergeParts& merge,
+                    std::ostream& out) {
+  std::optional<BaselineComparison> comparison;
+  if (baseline) comparison = compare_to_baseline(rows, *baseline);
+  sort_failures_first(rows);
+  const BaselineComparison* c = comparison ? &*comparison : nullptr;
+  json summary = summary_json(rows, plan, o, wall_s, c);
+  if (!merge.shards.is_null()) summary["shards"] = merge.shards;
+  if (merge.commit) summary["commit"] = *merge.commit;
+  std::ofstream(o.out_dir / "summary.json") << json_text(summary, 2) << "\n";
+  std::ofstream(o.out_dir / "junit.xml") << junit_xml(rows, wall_s, c, merge.missing);
+  std::ofstream(o.out_dir / "summary.html")
+      << summary_html(rows, plan, o, wall_s, c, merge.missing, merge.run_folders);
+  print_table(rows, out);
+  int failed = 0, refused = 0;
+  for (const RunRow& r : rows) {
+    failed += !r.passed && !r.refused;
+    refused += r.refused;
+  }
+  const size_t missing = merge.missing ? merge.missing->size() : 0;
+  out << rows.size() - failed - refused << " passed, " << failed << " failed";
+  if (refused) out << ", " << refused << " refused (not drivable by this car)";
+  if (missing) out << ", " << missing << " missing";
+  if (c)
+    out << ", " << c->regressions.size() << " regressions, " << c->missing.size()
+        << " baseline runs missing, " << c->added.size() << " new";
+  out << " (" << fixed(wall_s, 0) << " s)\n";
+  if (c)
+    for (const std::string& m : c->missing) out << "missing: " << m << "\n";
+  return failed == 0 && missing == 0 && (!c || c->regressions.empty()) ? 0 : 1;
+}
+
+}  // namespace
+
 int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& out,
                    std::ostream& progress) {
   using clock = std::chrono::steady_clock;
@@ -939,13 +1147,19 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
   const RegressionPlan plan = plan_regression(self, o);
   for (const SkippedTrack& s : plan.skipped)
     progress << "skipped track " << s.track << ": " << s.reason << "\n";
-  progress << plan.runs.size() << " runs, " << o.jobs << " at once, into " << o.out_dir.string();
+  // a shard or a rerun runs its part of the list; plan.json names the whole list for the merge
+  const std::vector<RegressionRun> runs = selected_runs(plan, o);
+  if (o.shard.active() || !o.only_ids.empty()) {
+    std::ofstream(o.out_dir / "plan.json") << json_text(plan_json(self, plan, o), 1) << "\n";
+    progress << (o.shard.active() ? "shard " + o.shard.text() : std::string("rerun")) << ": "
+             << runs.size() << " of " << plan.runs.size() << " runs; ";
+  }
+  progress << runs.size() << " runs, " << o.jobs << " at once, into " << o.out_dir.string();
   if (plan.event_mismatches > 0)
     progress << " (" << plan.event_mismatches << " scenario-track pairs left out: events differ)";
   progress << "\n";
 
   // run them, at most `jobs` at once, each a `conesim run` process logging into its folder
-  const std::vector<RegressionRun>& runs = plan.runs;
   std::vector<int> exit_codes(runs.size(), -1);
   std::vector<RunRow> rows(runs.size());
   size_t done_count = 0;
@@ -1041,30 +1255,283 @@ int run_regression(const fs::path& self, const RegressOptions& o, std::ostream& 
     return interrupted_exit_status(signal);
   }
 
-  // the verdicts, the baseline, the three summaries and the table
-  std::optional<BaselineComparison> comparison;
-  if (o.baseline) comparison = compare_to_baseline(rows, baseline);
-  sort_failures_first(rows);
-  const BaselineComparison* c = comparison ? &*comparison : nullptr;
-  std::ofstream(o.out_dir / "summary.json")
-      << json_text(summary_json(rows, plan, o, wall_s, c), 2) << "\n";
-  std::ofstream(o.out_dir / "junit.xml") << junit_xml(rows, wall_s, c);
-  std::ofstream(o.out_dir / "summary.html") << summary_html(rows, plan, o, wall_s, c);
-  print_table(rows, out);
-  int failed = 0, refused = 0;
-  for (const RunRow& r : rows) {
-    failed += !r.passed && !r.refused;
-    refused += r.refused;
+  return write_summaries(rows, plan, o, wall_s, o.baseline ? &baseline : nullptr, {}, out);
+}
+
+namespace {
+
+// a whole file's text; core::InputError naming `what` when it cannot be read
+std::string read_whole(const fs::path& file, const std::string& what) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(file.string(), 0, "cannot read " + what);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+json read_json(const fs::path& file, const std::string& what) {
+  try {
+    return json::parse(read_whole(file, what));
+  } catch (const json::exception& e) {
+    throw InputError(file.string(), 0, "not " + what + ": " + e.what());
   }
-  out << rows.size() - failed - refused << " passed, " << failed << " failed";
-  if (refused) out << ", " << refused << " refused (not drivable by this car)";
-  if (c)
-    out << ", " << c->regressions.size() << " regressions, " << c->missing.size()
-        << " baseline runs missing, " << c->added.size() << " new";
-  out << " (" << fixed(wall_s, 0) << " s)\n";
-  if (c)
-    for (const std::string& m : c->missing) out << "missing: " << m << "\n";
-  return failed == 0 && (!c || c->regressions.empty()) ? 0 : 1;
+}
+
+// the regress arguments of a shard without what makes it that shard (--shard, --out, --resume,
+// --only-missing): the same run list, whole
+std::vector<std::string> study_args(const std::vector<std::string>& args) {
+  return without_options(args, {"--shard", "--out", "--only-missing", "--jobs", "-j"}, {"--resume"});
+}
+
+}  // namespace
+
+std::string shell_word(const std::string& w) {
+  if (!w.empty() && w.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                        "0123456789-_./=:,+@%") == std::string::npos)
+    return w;
+  std::string q = "'";
+  for (char c : w) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+std::vector<std::string> without_options(const std::vector<std::string>& args,
+                                         const std::set<std::string>& with_value,
+                                         const std::set<std::string>& flags) {
+  std::vector<std::string> kept;
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    const std::string name = a.substr(0, a.find('='));
+    if (flags.count(a)) continue;
+    if (with_value.count(name)) {
+      if (name == a) ++i;  // the value is the next word
+      continue;
+    }
+    kept.push_back(a);
+  }
+  return kept;
+}
+
+json summary_without_timing(json j) {
+  if (!j.is_object()) return j;
+  for (const char* key : {"command", "finished_utc", "wall_time_s", "jobs", "shards"}) j.erase(key);
+  if (j.contains("runs") && j["runs"].is_array())
+    for (json& r : j["runs"])
+      if (r.is_object()) {
+        r.erase("wall_time_s");
+        r.erase("real_time_factor");
+      }
+  return j;
+}
+
+std::vector<std::string> summary_differences(const json& a, const json& b, size_t limit) {
+  std::vector<std::string> found;
+  const json patch = json::diff(summary_without_timing(a), summary_without_timing(b));
+  for (const json& op : patch) {
+    if (found.size() >= limit) {
+      found.push_back("... (" + std::to_string(patch.size() - limit) + " more)");
+      break;
+    }
+    const std::string path = op.value("path", std::string());
+    const std::string verb = op.value("op", std::string());
+    std::string was = "(none)";
+    if (verb != "add") {
+      try {
+        was = summary_without_timing(a).at(json::json_pointer(path)).dump();
+      } catch (const json::exception&) {
+      }
+    }
+    const std::string is = op.contains("value") ? op["value"].dump() : std::string("(none)");
+    auto cut = [](std::string t) { return t.size() > 160 ? t.substr(0, 157) + "..." : t; };
+    found.push_back(path + ": " + cut(was) + " -> " + cut(is));
+  }
+  return found;
+}
+
+int merge_regression(const MergeOptions& m, std::ostream& out, std::ostream& progress) {
+  if (m.dirs.empty()) throw InputError("merge", 0, "no folders to merge");
+  // each folder: its plan (the whole list) and, when its runs finished, its summary
+  struct Part {
+    fs::path dir;
+    json plan;
+    std::optional<std::vector<RunRow>> rows;
+    double wall_s = 0.0;
+    std::string commit;
+  };
+  std::vector<Part> parts;
+  const json* whole = nullptr;
+  std::vector<std::string> ids;
+  for (const fs::path& dir : m.dirs) {
+    Part p;
+    p.dir = fs::absolute(dir).lexically_normal();
+    if (core::is_file(dir / "plan.json"))
+      p.plan = read_json(dir / "plan.json", "a conesim regress plan.json");
+    if (core::is_file(dir / "summary.json")) {
+      const std::string text = read_whole(dir / "summary.json", "the shard's summary.json");
+      p.rows = parse_baseline(text, (dir / "summary.json").string());
+      try {
+        const json summary = json::parse(text);
+        p.wall_s = summary.value("wall_time_s", 0.0);
+        p.commit = summary.value("commit", std::string());
+      } catch (const json::exception&) {
+      }
+    }
+    if (!core::is_folder(dir))
+      progress << dir.string() << ": no such folder (its shard never started?)\n";
+    else if (p.plan.is_null())
+      progress << dir.string() << ": no plan.json (its shard never started?)\n";
+    else if (!p.rows)
+      progress << dir.string() << ": no summary.json: the runs of this "
+               << (p.plan["shard"].is_object()
+                       ? "shard (" + std::to_string(p.plan["shard"].value("index", 0)) + "/" +
+                             std::to_string(p.plan["shard"].value("count", 0)) + ")"
+                       : std::string("rerun"))
+               << " are missing unless another folder has them\n";
+    parts.push_back(std::move(p));
+  }
+  // the whole list, the same in every plan
+  for (const Part& p : parts) {
+    if (p.plan.is_null()) continue;
+    std::vector<std::string> these;
+    try {
+      for (const json& r : p.plan.at("runs")) these.push_back(r.at("id").get<std::string>());
+    } catch (const json::exception& e) {
+      throw InputError((p.dir / "plan.json").string(), 0,
+                       std::string("not a conesim regress plan.json: ") + e.what());
+    }
+    if (!whole) {
+      whole = &p.plan;
+      ids = these;
+    } else if (these != ids) {
+      throw InputError((p.dir / "plan.json").string(), 0,
+                       "lists other runs than " + (parts.front().dir / "plan.json").string() +
+                           ": these folders are shards of different regressions (the same "
+                           "scenarios, tracks, seeds and --set values make the same list)");
+    }
+  }
+  if (!whole)
+    throw InputError(m.dirs.front().string(), 0,
+                     "no plan.json in any of the folders: merge takes the --out folders of "
+                     "`conesim regress ... --shard I/N`");
+
+  // each run's row from the last folder that has it
+  std::map<std::string, RunRow> found;
+  std::map<std::string, std::string> folders;
+  double wall_s = 0.0;
+  for (const Part& p : parts) {
+    if (!p.rows) continue;
+    wall_s = std::max(wall_s, p.wall_s);
+    for (const RunRow& r : *p.rows) {
+      found[r.id] = r;
+      folders[r.id] = (p.dir.lexically_relative(fs::absolute(m.out_dir).lexically_normal()) / r.dir)
+                          .generic_string();
+    }
+  }
+  std::vector<RunRow> rows;
+  std::vector<std::string> missing;
+  for (const std::string& id : ids) {
+    const auto it = found.find(id);
+    if (it == found.end()) {
+      missing.push_back(id);
+      continue;
+    }
+    rows.push_back(it->second);
+    rows.back().regressions.clear();
+  }
+
+  // the plan and options as the shards had them
+  RegressionPlan plan;
+  plan.event_mismatches = whole->value("event_mismatches_left_out", 0);
+  for (const json& t : whole->value("skipped_tracks", json::array()))
+    plan.skipped.push_back({t.value("track", std::string()), t.value("reason", std::string())});
+  RegressOptions o;
+  o.out_dir = m.out_dir;
+  o.command_line = m.command_line;
+  o.jobs = whole->value("jobs", 1);
+  o.baseline = m.baseline;
+  if (!o.baseline && (*whole)["baseline"].is_string())
+    o.baseline = fs::path((*whole)["baseline"].get<std::string>());
+  std::vector<RunRow> baseline;
+  if (o.baseline)
+    baseline = parse_baseline(read_whole(*o.baseline, "the baseline summary"), o.baseline->string());
+  json expected;
+  if (m.expect) expected = read_json(*m.expect, "a conesim regress summary.json");
+
+  // the command that runs only the missing runs and merges again
+  json dirs = json::array();
+  for (const Part& p : parts) dirs.push_back(p.dir.string());
+  std::string rerun;
+  if (!missing.empty()) {
+    rerun = shell_word(whole->value("binary", std::string("conesim"))) + " regress";
+    for (const std::string& a : study_args(whole->value("args", std::vector<std::string>())))
+      rerun += " " + shell_word(a);
+    rerun += " --only-missing " + shell_word(fs::absolute(m.out_dir).lexically_normal().string());
+  }
+  MergeParts merge;
+  std::set<std::string> commits;
+  for (const Part& p : parts)
+    if (p.rows) commits.insert(p.commit);
+  if (!commits.empty()) merge.commit = *commits.begin();
+  if (commits.size() > 1)
+    progress << "note: the folders' runs come from different builds (" << join({commits.begin(), commits.end()}, ", ")
+             << "): summary.json names " << *merge.commit << "\n";
+  merge.missing = &missing;
+  merge.run_folders = &folders;
+  merge.shards = {{"count", (*whole)["shard"].is_object() ? (*whole)["shard"].value("count", 0) : 0},
+                  {"folders", dirs},
+                  {"missing_runs", missing},
+                  {"rerun", rerun.empty() ? json(nullptr) : json(rerun)}};
+  fs::create_directories(m.out_dir);
+  check_output_writable(m.out_dir);
+  progress << "merged " << parts.size() << " folders: " << rows.size() << " of " << ids.size()
+           << " runs\n";
+  int status = write_summaries(rows, plan, o, wall_s, o.baseline ? &baseline : nullptr, merge, out);
+  for (const std::string& id : missing) out << "missing (no result): " << id << "\n";
+  if (!missing.empty())
+    out << missing.size() << " runs missing; run only them and merge again with:\n  " << rerun
+        << "\n";
+  if (m.expect) {
+    const json merged = read_json(m.out_dir / "summary.json", "the merged summary.json");
+    const std::vector<std::string> diff = summary_differences(expected, merged);
+    if (diff.empty()) {
+      out << "same as " << m.expect->string() << " apart from timing\n";
+    } else {
+      out << "differs from " << m.expect->string() << " (apart from timing):\n";
+      for (const std::string& d : diff) out << "  " << d << "\n";
+      status = 1;
+    }
+  }
+  return status;
+}
+
+int rerun_missing(const fs::path& self, RegressOptions o, const fs::path& merge_dir,
+                  std::ostream& out, std::ostream& progress) {
+  const json merged = read_json(merge_dir / "summary.json", "a merged conesim summary.json");
+  if (!merged.contains("shards") || !merged["shards"].is_object())
+    throw InputError("--only-missing", 0,
+                     (merge_dir / "summary.json").string() +
+                         " is not the summary of `conesim merge` (it has no shards section)");
+  const json& shards = merged["shards"];
+  o.only_ids = shards.value("missing_runs", std::vector<std::string>());
+  MergeOptions m;
+  for (const std::string& d : shards.value("folders", std::vector<std::string>()))
+    m.dirs.push_back(d);
+  if (o.only_ids.empty()) {
+    out << "no run is missing in " << merge_dir.string() << "\n";
+    return 0;
+  }
+  // the rerun beside the merge, in a folder of its own
+  for (int k = 1;; ++k) {
+    o.out_dir = merge_dir / ("rerun-" + std::to_string(k));
+    if (!core::path_exists(o.out_dir)) break;
+  }
+  o.shard = {};
+  o.resume = false;
+  progress << "running the " << o.only_ids.size() << " missing runs into " << o.out_dir.string()
+           << "\n";
+  run_regression(self, o, out, progress);
+  if (const int signal = interrupt_signal()) return interrupted_exit_status(signal);
+  m.dirs.push_back(fs::absolute(o.out_dir));
+  m.out_dir = merge_dir;
+  m.command_line = o.command_line;
+  return merge_regression(m, out, progress);
 }
 
 fs::path make_run_dir(const fs::path& parent, const std::string& name) {

@@ -6,12 +6,29 @@
 #include <cmath>
 #include <filesystem>
 #include <iosfwd>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
+#include "core/event.hpp"
+
 namespace conesim::sim {
+
+/// `--shard I/N`: the I-th (1-based) of N slices of the run list; count 0 is the whole list.
+struct Shard {
+  int index = 0;
+  int count = 0;
+  bool active() const { return count > 0; }
+  /// "I/N"
+  std::string text() const;
+};
+
+/// Parses "I/N" with 1 <= I <= N. Throws core::InputError naming `option` (e.g. --shard) and
+/// what it expected for 0/4, 5/4, x and the like.
+Shard parse_shard(const std::string& text, const std::string& option = "--shard");
 
 /// What `conesim regress` was asked to run.
 struct RegressOptions {
@@ -40,6 +57,14 @@ struct RegressOptions {
   /// --resume: in an --out folder of an earlier, interrupted call with the same runs
   /// (runs.json), the runs that wrote their metrics.json are read, not run again.
   bool resume = false;
+  /// --shard I/N: only the runs of that slice run; plan.json beside them names the whole list.
+  Shard shard;
+  /// When not empty, only the runs with these ids run (--only-missing); plan.json names the
+  /// whole list, so that `conesim merge` can take these runs in with the shards'.
+  std::vector<std::string> only_ids;
+  /// The command's arguments after `regress`, as given: plan.json keeps them for the command
+  /// that reruns a dead shard's runs (without --shard, --out and --resume).
+  std::vector<std::string> args;
 };
 
 /// One run of the regression.
@@ -52,6 +77,9 @@ struct RegressionRun {
   unsigned long long seed = 1;
   /// The run's folder, relative to the regression's folder.
   std::filesystem::path dir;
+  /// What the run is expected to cost, in units of one ground-truth autocross lap of 300 m
+  /// (run_cost); shards are balanced by it.
+  double cost = 1.0;
 
   /// "scenario | track | seed N": how a run is found again in a baseline.
   std::string id() const;
@@ -71,6 +99,26 @@ struct RegressionPlan {
   /// Scenario and track pairs left out because their events differ (e.g. skidpad on a circuit).
   int event_mismatches = 0;
 };
+
+/// The expected cost of one run, in units of one ground-truth lap of a 300 m circuit: the laps
+/// the event drives (acceleration 1, skidpad 4, autocross 1, trackdrive 10) x the lap length /
+/// 300 m (the track file's centre line; on a scenario's own track the usual length: acceleration
+/// 75 m, skidpad 60 m, circuits 300 m), x 1.5 with a SLAM back-end driving, + 0.5 per shadow
+/// back-end, x 3 for raw-data perception (lidar, stereo, fused). Rounded to 1/1000 so that every
+/// machine balances the same list the same way.
+double run_cost(core::EventType event, double lap_length_m, bool slam_driving, int slam_shadows,
+                bool raw_perception);
+
+/// Slices `costs` (one per run, in run order) into `count` shards by greedy longest processing
+/// time: runs from the most to the least expensive (ties by run order) each go to the shard
+/// with the least cost so far (ties to the lower shard). Returns each shard's run indexes in
+/// run order. Every run is in exactly one shard; a shard's total exceeds another's by at most
+/// the most expensive run.
+std::vector<std::vector<size_t>> shard_runs(const std::vector<double>& costs, int count);
+
+/// The runs of the plan this call runs, in run order: those of options.only_ids, else the
+/// slice of options.shard, else all. Throws core::InputError for an id not in the plan.
+std::vector<RegressionRun> selected_runs(const RegressionPlan& plan, const RegressOptions& options);
 
 /// Parses "1,2,3", "1-5" or a mix ("1-3,7"). Throws core::InputError on anything else.
 std::vector<unsigned long long> parse_seeds(const std::string& text);
@@ -198,13 +246,19 @@ nlohmann::json summary_json(const std::vector<RunRow>& rows, const RegressionPla
 /// junit.xml: one testcase per run (classname the scenario, name track and seed), a failure
 /// with the reasons for each failed or regressed run, and with a baseline one testcase
 /// "baseline medians" that fails on a median regression.
+/// With `missing` (a merge of shards): one failed testcase per run that has no result.
 std::string junit_xml(const std::vector<RunRow>& rows, double wall_s,
-                      const BaselineComparison* comparison = nullptr);
+                      const BaselineComparison* comparison = nullptr,
+                      const std::vector<std::string>* missing = nullptr);
 
 /// summary.html: self-contained, failures first, a link to each run's report.html.
+/// A merge passes the runs with no result (`missing`) and where each run's folder is, relative
+/// to options.out_dir, by run id (`run_folders`; else a run's own `dir`).
 std::string summary_html(const std::vector<RunRow>& rows, const RegressionPlan& plan,
                          const RegressOptions& options, double wall_s,
-                         const BaselineComparison* comparison);
+                         const BaselineComparison* comparison,
+                         const std::vector<std::string>* missing = nullptr,
+                         const std::map<std::string, std::string>* run_folders = nullptr);
 
 /// The console table, the reason under every FAIL row.
 void print_table(const std::vector<RunRow>& rows, std::ostream& out);
@@ -214,6 +268,53 @@ void print_table(const std::vector<RunRow>& rows, std::ostream& out);
 /// unreadable baseline (checked before any run starts).
 int run_regression(const std::filesystem::path& self, const RegressOptions& options,
                    std::ostream& out, std::ostream& progress);
+
+/// `conesim merge DIR... --out OUT`: the --out folders of `conesim regress --shard I/N` (and of
+/// `--only-missing` reruns) into one summary.
+struct MergeOptions {
+  std::vector<std::filesystem::path> dirs;
+  std::filesystem::path out_dir;
+  /// Compare against this summary.json; else against the shards' own --baseline, if they had one.
+  std::optional<std::filesystem::path> baseline;
+  /// --expect: a summary.json the merged one must equal apart from timing (same_apart_from_timing).
+  std::optional<std::filesystem::path> expect;
+  std::string command_line;
+};
+
+/// Reads each folder's plan.json (the whole run list) and summary.json (its runs' rows), and
+/// writes into out_dir the summary.json, junit.xml and summary.html an unsharded regress writes,
+/// with the same rows in the same order (a run found in several folders: the last folder's row).
+/// summary.json gains `shards`: the folders, the runs with no result (`missing_runs`: a shard
+/// that died or was never run) and the one command that runs only those (`rerun`). Prints the
+/// table, the missing runs and that command. Returns 0 when every run is there and passed (and
+/// nothing regressed, and --expect matched), 1 otherwise. Throws core::InputError when no folder
+/// has a plan.json or two folders' plans list different runs.
+int merge_regression(const MergeOptions& options, std::ostream& out, std::ostream& progress);
+
+/// A summary.json without what differs between two calls of the same study: the command, when
+/// it finished, wall times, jobs, real-time factors and a merge's `shards`.
+nlohmann::json summary_without_timing(nlohmann::json summary);
+
+/// The differences between two summaries apart from timing, one "path: a -> b" a line (at most
+/// `limit`); empty when they are the same.
+std::vector<std::string> summary_differences(const nlohmann::json& a, const nlohmann::json& b,
+                                             size_t limit = 20);
+
+/// `conesim regress ... --only-missing MERGE_DIR`: runs the runs that MERGE_DIR's summary.json
+/// lists as missing (options as the shards had them, out_dir ignored) into MERGE_DIR/rerun-K,
+/// then merges the shards and the rerun into MERGE_DIR again. Returns merge_regression's status.
+int rerun_missing(const std::filesystem::path& self, RegressOptions options,
+                  const std::filesystem::path& merge_dir, std::ostream& out,
+                  std::ostream& progress);
+
+/// One word of a shell command line, quoted when it needs to be.
+std::string shell_word(const std::string& word);
+
+/// `args` without the options named: `with_value` ones with their value (--out X, --out=X),
+/// `flags` alone.
+std::vector<std::string> without_options(const std::vector<std::string>& args,
+                                         const std::set<std::string>& with_value,
+                                         const std::set<std::string>& flags);
 
 /// A fresh run directory under `parent` named <name>-<UTC stamp>, made unique with a suffix.
 std::filesystem::path make_run_dir(const std::filesystem::path& parent, const std::string& name);

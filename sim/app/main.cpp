@@ -19,6 +19,7 @@
 #include "sim/replay.hpp"
 #include "sim/run.hpp"
 #include "sim/scenario.hpp"
+#include "sim/slurm.hpp"
 #include "sim/track_commands.hpp"
 #include "tracks/io.hpp"
 #include "vehicle_models/steering.hpp"
@@ -449,9 +450,46 @@ void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
   cmd->add_flag("--resume", o->resume,
                 "With --out of an earlier, interrupted call with the same runs: the runs that "
                 "wrote their metrics.json are read, the others run");
+  auto shard = std::make_shared<std::string>();
+  cmd->add_option("--shard", *shard,
+                  "I/N: run only shard I of N (slices balanced by expected cost, the same on "
+                  "every machine); `conesim merge` joins the shards' --out folders");
+  auto only_missing = std::make_shared<fs::path>();
+  cmd->add_option("--only-missing", *only_missing,
+                  "MERGE_DIR: run only the runs the merge in MERGE_DIR lists as missing (with "
+                  "the shards' arguments), then merge again into MERGE_DIR");
+  auto slurm = std::make_shared<conesim::sim::SlurmOptions>();
+  auto use_slurm = std::make_shared<bool>(false);
+  cmd->add_flag("--slurm", *use_slurm,
+                "Submit to Slurm instead of running here: a job array of --shards tasks into "
+                "OUT/shard-K and a merge job into OUT, with sbatch; prints the job ids");
+  cmd->add_option("--shards", slurm->shards, "With --slurm: the number of shards (default 4)")
+      ->check(CLI::Range(1, 10000));
+  cmd->add_option("--partition", slurm->partition, "With --slurm: sbatch --partition");
+  cmd->add_option("--time", slurm->time, "With --slurm: sbatch --time of each task (e.g. 1:00:00)");
+  cmd->add_option("--cpus-per-task", slurm->cpus_per_task,
+                  "With --slurm: sbatch --cpus-per-task; each task runs that many runs at once")
+      ->check(CLI::Range(1, 1024));
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;
     sim::install_interrupt_handlers();
+    if (!shard->empty()) o->shard = sim::parse_shard(*shard);
+    for (const char* opt : {"--shards", "--partition", "--time", "--cpus-per-task"})
+      if (cmd->count(opt) && !*use_slurm)
+        throw conesim::core::InputError(opt, 0, "only with --slurm");
+    if (*use_slurm && (o->shard.active() || !only_missing->empty() || o->resume))
+      throw conesim::core::InputError("--slurm", 0,
+                                      "not with --shard, --only-missing or --resume: --slurm "
+                                      "runs every shard itself");
+    if (!only_missing->empty() && (o->shard.active() || o->resume || !o->out_dir.empty()))
+      throw conesim::core::InputError("--only-missing", 0,
+                                      "not with --shard, --resume or --out: the runs go into "
+                                      "MERGE_DIR/rerun-K");
+    {
+      int k = 1;
+      while (k < argc && std::string(argv[k]) != "regress") ++k;
+      for (++k; k < argc; ++k) o->args.push_back(argv[k]);
+    }
     if (o->resume && o->out_dir.empty())
       throw conesim::core::InputError("--resume", 0,
                                       "needs --out: the folder of the interrupted regress");
@@ -470,20 +508,82 @@ void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
     if (!baseline->empty()) o->baseline = *baseline;
     o->plot = !*no_plot;
     for (int i = 0; i < argc; ++i) o->command_line += (i ? " " : "") + std::string(argv[i]);
-    if (o->out_dir.empty()) o->out_dir = sim::make_run_dir("runs", "regress");
     std::error_code ec;
     fs::path self = fs::read_symlink("/proc/self/exe", ec);
     if (ec) self = fs::absolute(argv[0]);
+    if (!only_missing->empty()) {
+      status = sim::rerun_missing(self, *o, *only_missing, std::cout, std::cerr);
+      return;
+    }
+    if (o->out_dir.empty()) o->out_dir = sim::make_run_dir("runs", "regress");
     if (*list) {
       const sim::RegressionPlan plan = sim::plan_regression(self, *o);
-      for (const auto& r : plan.runs) std::cout << r.id() << "  " << r.dir.string() << "\n";
+      const std::vector<sim::RegressionRun> runs = sim::selected_runs(plan, *o);
+      double cost = 0.0;
+      for (const auto& r : runs) {
+        std::cout << r.id() << "  " << r.dir.string() << "  cost " << r.cost << "\n";
+        cost += r.cost;
+      }
       for (const auto& t : plan.skipped)
         std::cout << "skipped " << t.track << ": " << t.reason << "\n";
-      std::cout << plan.runs.size() << " runs\n";
+      std::cout << runs.size() << " runs";
+      if (o->shard.active()) std::cout << " of " << plan.runs.size() << " (shard " << o->shard.text() << ")";
+      std::cout << ", expected cost " << cost << "\n";
+      return;
+    }
+    // after --list, which only shows the runs: --slurm --list submits nothing
+    if (*use_slurm) {
+      if (cmd->count("--jobs")) slurm->jobs = o->jobs;
+      status = sim::submit_regression_to_slurm(self, *o, *slurm, std::cout, std::cerr);
       return;
     }
     status = sim::run_regression(self, *o, std::cout, std::cerr);
     std::cout << o->out_dir.string() << "\n";
+  });
+}
+
+// `conesim merge DIR... --out DIR`
+void add_merge_command(CLI::App& app, int& status, int argc, char** argv) {
+  auto* cmd = app.add_subcommand(
+      "merge",
+      "Join the --out folders of `conesim regress --shard I/N` (and of --only-missing reruns) "
+      "into the summary.json, junit.xml and summary.html one unsharded regress writes. Runs of a "
+      "shard that wrote no summary are listed as missing, with the command that runs only them. "
+      "Exit 0 when every run is there and passed, 1 otherwise, 2 for bad input");
+  auto m = std::make_shared<conesim::sim::MergeOptions>();
+  auto baseline = std::make_shared<fs::path>();
+  auto expect = std::make_shared<fs::path>();
+  cmd->add_option("DIR", m->dirs, "The shards' --out folders")->required();
+  cmd->add_option("--out", m->out_dir, "Folder of the merged summaries")->required();
+  cmd->add_option("--baseline", *baseline,
+                  "A stored summary.json (default: the shards' own --baseline, if any)");
+  cmd->add_option("--expect", *expect,
+                  "A summary.json the merged one must equal apart from timing (exit 1 and the "
+                  "differences when not): e.g. the unsharded run's");
+  cmd->callback([=, &status] {
+    if (!baseline->empty()) m->baseline = *baseline;
+    if (!expect->empty()) m->expect = *expect;
+    for (int i = 0; i < argc; ++i) m->command_line += (i ? " " : "") + std::string(argv[i]);
+    status = conesim::sim::merge_regression(*m, std::cout, std::cerr);
+    std::cout << m->out_dir.string() << "\n";
+  });
+}
+
+// `conesim slurm status JOB...`
+void add_slurm_commands(CLI::App& app, int& status) {
+  auto* slurm = app.add_subcommand("slurm", "Follow a regression submitted with --slurm");
+  slurm->require_subcommand(1);
+  auto* cmd = slurm->add_subcommand(
+      "status",
+      "Per job, its tasks by state (sacct; squeue without accounting). Exit 0 when all "
+      "completed, 1 when one failed or was cancelled, 3 while some run, 2 for an unknown job");
+  auto jobs = std::make_shared<std::vector<std::string>>();
+  auto wait = std::make_shared<bool>(false);
+  cmd->add_option("JOB", *jobs, "Job ids, or the --out folder of `conesim regress --slurm`")
+      ->required();
+  cmd->add_flag("--wait", *wait, "Wait until no task is pending or running");
+  cmd->callback([=, &status] {
+    status = conesim::sim::slurm_status(*jobs, *wait, 2.0, std::cout, std::cerr);
   });
 }
 
@@ -624,6 +724,8 @@ int main(int argc, char** argv) {
   add_run_command(app, status);
   add_view_command(app);
   add_regress_command(app, status, argc, argv);
+  add_merge_command(app, status, argc, argv);
+  add_slurm_commands(app, status);
   add_compare_command(app, status, argc, argv);
   add_vehicle_commands(app);
   add_bench_commands(app);

@@ -2,9 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
 #include <sstream>
+#include <unistd.h>
 
 #include "core/error.hpp"
+#include "sim/json_text.hpp"
 
 namespace conesim::sim {
 namespace {
@@ -275,6 +279,218 @@ TEST(Table, EveryFailRowCarriesItsReason) {
   EXPECT_NE(out.str().find("FAIL"), std::string::npos);
   EXPECT_NE(out.str().find("    1 cones hit, at most 0 allowed"), std::string::npos);
   EXPECT_NE(out.str().find("cone_hit lap 2 t 31.2 s at (12.3, -4.5)"), std::string::npos);
+}
+
+// --- shards and their merge --------------------------------------------------------------------
+
+namespace fs = std::filesystem;
+
+TEST(Shard, BadShardNamesTheOptionAndWhatItExpected) {
+  for (const char* bad : {"0/4", "5/4", "x", "1/0", "2/", "/4", "-1/4", "1.5/4"}) {
+    try {
+      parse_shard(bad);
+      ADD_FAILURE() << bad << " was taken";
+    } catch (const core::InputError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("--shard"), std::string::npos) << what;
+      EXPECT_NE(what.find("I/N"), std::string::npos) << what;
+      EXPECT_NE(what.find(bad), std::string::npos) << what;
+    }
+  }
+  EXPECT_EQ(parse_shard("3/4").index, 3);
+  EXPECT_EQ(parse_shard("3/4").count, 4);
+  EXPECT_EQ(parse_shard("1/1").text(), "1/1");
+}
+
+// costs like a mixed study's: acceleration, skidpad, circuits, trackdrives with SLAM
+std::vector<double> mixed_costs(size_t n) {
+  std::vector<double> c;
+  for (size_t i = 0; i < n; ++i)
+    c.push_back(std::vector<double>{0.25, 0.8, 1.0, 1.7, 10.0, 15.0, 3.2}[i % 7] + 0.01 * (i % 5));
+  return c;
+}
+
+TEST(Shard, SlicesPartitionTheListExactlyAndAreTheSameEveryTime) {
+  const std::vector<double> costs = mixed_costs(41);
+  for (int n = 1; n <= 9; ++n) {
+    const auto shards = shard_runs(costs, n);
+    ASSERT_EQ(shards.size(), static_cast<size_t>(n));
+    std::vector<int> seen(costs.size(), 0);
+    for (const auto& s : shards) {
+      EXPECT_TRUE(std::is_sorted(s.begin(), s.end())) << "a shard runs in run order";
+      for (size_t i : s) ++seen.at(i);
+    }
+    for (size_t i = 0; i < seen.size(); ++i) EXPECT_EQ(seen[i], 1) << "run " << i << ", " << n;
+    EXPECT_EQ(shard_runs(costs, n), shards);
+  }
+  // more shards than runs: the extra shards are empty, every run still in one
+  const auto many = shard_runs({1.0, 2.0}, 4);
+  EXPECT_EQ(many[0], std::vector<size_t>{1});
+  EXPECT_EQ(many[1], std::vector<size_t>{0});
+  EXPECT_TRUE(many[2].empty() && many[3].empty());
+}
+
+TEST(Shard, SlicesAreBalancedByExpectedCost) {
+  const std::vector<double> costs = mixed_costs(40);
+  double biggest = 0.0, total = 0.0;
+  for (double c : costs) {
+    biggest = std::max(biggest, c);
+    total += c;
+  }
+  for (int n : {2, 3, 4, 8}) {
+    std::vector<double> load;
+    for (const auto& s : shard_runs(costs, n)) {
+      double sum = 0.0;
+      for (size_t i : s) sum += costs[i];
+      load.push_back(sum);
+    }
+    const auto [lo, hi] = std::minmax_element(load.begin(), load.end());
+    EXPECT_LE(*hi - *lo, biggest) << n << " shards";
+    // within 10 % of a perfect split (or one run's cost, whichever is more)
+    EXPECT_LE(*hi, std::max(1.10 * total / n, total / n + biggest)) << n << " shards";
+  }
+  // equal costs: equal counts, not the first shards full and the last ones empty
+  for (const auto& s : shard_runs(std::vector<double>(40, 1.0), 4)) EXPECT_EQ(s.size(), 10u);
+  // a trackdrive with SLAM costs more than an acceleration run; longer tracks cost more
+  EXPECT_GT(run_cost(core::EventType::kTrackdrive, 300, true, 0, false),
+            run_cost(core::EventType::kAcceleration, 0, false, 0, false) * 20);
+  EXPECT_GT(run_cost(core::EventType::kAutocross, 600, false, 0, false),
+            run_cost(core::EventType::kAutocross, 300, false, 0, false));
+}
+
+// a folder as `conesim regress --shard I/N` leaves it: plan.json (the whole list) and, unless the
+// shard died, summary.json of its runs
+struct FakeStudy {
+  fs::path root;
+  std::vector<RegressionRun> runs;
+  std::vector<RunRow> rows;
+  FakeStudy() {
+    root = fs::temp_directory_path() / ("conesim-merge-test-" + std::to_string(getpid()));
+    fs::remove_all(root);
+    fs::create_directories(root);
+    for (unsigned long long seed = 1; seed <= 7; ++seed) {
+      std::string track = "t";
+      track += std::to_string(seed % 3);
+      runs.push_back(run(track, seed));
+      runs.back().cost = 1.0 + static_cast<double>(seed % 4);
+      // seed 4 fails: failures sort first, in the merge as in the whole run
+      rows.push_back(make_row(runs.back(), metrics(seed != 4, 20.0 + seed), seed == 4 ? 1 : 0));
+    }
+  }
+  ~FakeStudy() { fs::remove_all(root); }
+  json plan(int index, int count) const {
+    json list = json::array();
+    for (const RegressionRun& r : runs) list.push_back({{"id", r.id()}, {"dir", r.dir}});
+    return {{"binary", "/opt/conesim"},
+            {"args", {"trackdrive", "--seeds", "1-7", "--shard", "1/3", "--out", "x"}},
+            {"shard", {{"index", index}, {"count", count}}},
+            {"jobs", 1},
+            {"baseline", nullptr},
+            {"skipped_tracks", json::array()},
+            {"event_mismatches_left_out", 0},
+            {"runs", list}};
+  }
+  // the unsharded summary, and the shard folders
+  fs::path whole() const {
+    std::vector<RunRow> all = rows;
+    sort_failures_first(all);
+    RegressOptions o;
+    const fs::path f = root / "whole.json";
+    std::ofstream(f) << json_text(summary_json(all, RegressionPlan{}, o, 9.0, nullptr), 2);
+    return f;
+  }
+  fs::path shard(int index, int count, bool finished) const {
+    const fs::path dir = root / ("shard-" + std::to_string(index));
+    fs::create_directories(dir);
+    std::ofstream(dir / "plan.json") << plan(index, count).dump();
+    if (!finished) return dir;
+    std::vector<double> costs;
+    for (const RegressionRun& r : runs) costs.push_back(r.cost);
+    std::vector<RunRow> mine;
+    const auto shards = shard_runs(costs, count);
+    for (size_t i : shards[static_cast<size_t>(index - 1)]) mine.push_back(rows[i]);
+    sort_failures_first(mine);
+    RegressOptions o;
+    o.command_line = "conesim regress --shard " + std::to_string(index);
+    std::ofstream(dir / "summary.json")
+        << json_text(summary_json(mine, RegressionPlan{}, o, 3.0 + index, nullptr), 2);
+    return dir;
+  }
+  static json read(const fs::path& f) {
+    std::ifstream in(f);
+    return json::parse(in);
+  }
+};
+
+TEST(Merge, ShardsMergeIntoTheUnshardedSummaryApartFromTiming) {
+  FakeStudy study;
+  MergeOptions m;
+  for (int k = 1; k <= 3; ++k) m.dirs.push_back(study.shard(k, 3, true));
+  m.out_dir = study.root / "merged";
+  m.expect = study.whole();
+  std::ostringstream out, progress;
+  EXPECT_EQ(merge_regression(m, out, progress), 1) << "one run failed";
+  EXPECT_NE(out.str().find("same as"), std::string::npos) << out.str();
+  const json merged = FakeStudy::read(m.out_dir / "summary.json");
+  const json whole = FakeStudy::read(*m.expect);
+  EXPECT_EQ(summary_without_timing(merged), summary_without_timing(whole));
+  EXPECT_TRUE(summary_differences(whole, merged).empty());
+  EXPECT_EQ(merged["runs"][0]["seed"], 4) << "the failure first, as unsharded";
+  EXPECT_TRUE(merged["shards"]["missing_runs"].empty());
+  EXPECT_TRUE(fs::exists(m.out_dir / "junit.xml"));
+  EXPECT_TRUE(fs::exists(m.out_dir / "summary.html"));
+  // a changed figure is found, and named by its place
+  json other = whole;
+  other["runs"][1]["best_lap_s"] = 99.0;
+  ASSERT_EQ(summary_differences(other, merged).size(), 1u);
+  EXPECT_NE(summary_differences(other, merged)[0].find("/runs/1/best_lap_s"), std::string::npos);
+}
+
+TEST(Merge, ADeadShardsRunsAreMissingWithTheCommandThatRunsOnlyThem) {
+  FakeStudy study;
+  MergeOptions m;
+  m.dirs = {study.shard(1, 3, true), study.shard(2, 3, false), study.shard(3, 3, true)};
+  m.out_dir = study.root / "merged";
+  std::ostringstream out, progress;
+  EXPECT_EQ(merge_regression(m, out, progress), 1);
+  std::vector<double> costs;
+  for (const RegressionRun& r : study.runs) costs.push_back(r.cost);
+  const auto lost = shard_runs(costs, 3)[1];
+  ASSERT_FALSE(lost.empty());
+  const json merged = FakeStudy::read(m.out_dir / "summary.json");
+  EXPECT_EQ(merged["shards"]["missing_runs"].size(), lost.size());
+  EXPECT_EQ(merged["runs"].size() + lost.size(), study.runs.size());
+  for (size_t i : lost) {
+    const std::string id = study.runs[i].id();
+    EXPECT_NE(out.str().find("missing (no result): " + id), std::string::npos) << out.str();
+    EXPECT_NE(merged["shards"]["missing_runs"].dump().find(id), std::string::npos);
+  }
+  // the rerun: the shards' arguments without --shard, --out and --jobs, and the merge folder
+  const std::string rerun = merged["shards"]["rerun"];
+  EXPECT_EQ(rerun, "/opt/conesim regress trackdrive --seeds 1-7 --only-missing " +
+                       fs::absolute(m.out_dir).lexically_normal().string());
+  EXPECT_NE(out.str().find(rerun), std::string::npos);
+  // JUnit fails each missing run; the HTML lists them
+  std::ifstream junit(m.out_dir / "junit.xml");
+  const std::string x{std::istreambuf_iterator<char>(junit), {}};
+  EXPECT_NE(x.find("classname=\"missing\""), std::string::npos);
+  EXPECT_NE(x.find("failures=\"" + std::to_string(lost.size() + 1) + "\""), std::string::npos);
+}
+
+TEST(Merge, FoldersOfDifferentStudiesAreRefused) {
+  FakeStudy study;
+  MergeOptions m;
+  m.dirs = {study.shard(1, 2, true), study.root / "other"};
+  fs::create_directories(m.dirs[1]);
+  json plan = study.plan(2, 2);
+  plan["runs"].erase(0);
+  std::ofstream(m.dirs[1] / "plan.json") << plan.dump();
+  m.out_dir = study.root / "merged";
+  std::ostringstream out, progress;
+  EXPECT_THROW(merge_regression(m, out, progress), core::InputError);
+  // and a folder that is no shard at all
+  m.dirs = {study.root / "nothing"};
+  EXPECT_THROW(merge_regression(m, out, progress), core::InputError);
 }
 
 }  // namespace
