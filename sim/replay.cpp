@@ -259,6 +259,7 @@ ReplayLog read_replay_log(const fs::path& file) {
   };
   auto take = [&](void* dst, size_t bytes, size_t end) {
     if (bytes > end - at) fail("truncated record");
+    if (bytes == 0) return;  // an empty list's data() may be null, which memcpy must not get
     std::memcpy(dst, data.data() + at, bytes);
     at += bytes;
   };
