@@ -32,6 +32,9 @@ constexpr double kConeReachExtraM = 2.0;
 // full lock the other way than the tight turn ahead is tried when the steering is already
 // turned that way by this share of full lock
 constexpr double kOtherSideSteerShare = 0.3;
+// steering past this share of full lock towards a side is a turn under way: no candidate
+// straightens it before turning that way
+constexpr double kCommittedSteerShare = 0.5;
 // cones further than this from the rear axle cannot touch the footprint, metres
 constexpr double kFootprintReachM = 4.0;
 
@@ -222,6 +225,13 @@ ManoeuvreChoice choose_manoeuvre(const ManoeuvreParams& p, const Pose2& pose, do
     for (const double wait : p.wait_s)
       for (const bool straight : {false, true}) {
         if (straight && wait <= 0.0) continue;
+        // once the steering is well into a turn, holding it straight first would unwind it
+        // mid-turn: re-chosen tick after tick (a wait always looks as good as turning now to a
+        // model that turns a little tighter than the car), the steering flipped between lock
+        // and straight and the car turned in late (generated hard trackdrive 7177, lap 1)
+        if (straight && side == steer_side &&
+            std::abs(steer_now_rad) >= kCommittedSteerShare * p.max_steer_rad)
+          continue;
         for (const double hold : p.hold_s) consider({wait, hold, side, straight});
       }
   // nothing keeps clear (a cone seen late, a path through cones): the roll-outs know no better

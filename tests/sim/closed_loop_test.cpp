@@ -77,6 +77,20 @@ TEST(ClosedLoop, SlamPassCriteriaFailTheRun) {
   EXPECT_NE(r.failures[0].find("SLAM map RMSE"), std::string::npos) << r.failures[0];
 }
 
+TEST(ClosedLoop, ExplorationTurnsIntoAMinimumHairpinWithoutUnwindingTheLock) {
+  // generated hard circuit 7177: lap 1 meets a hairpin of 9.45 m outside diameter (cone
+  // centres) at the end of a straight. The manoeuvre search turned in at full lock, then, its
+  // model turning a little tighter than the car, chose "straight for 0.1 s, then lock" on one
+  // tick and lock on the next for 0.4 s: the steering flipped between 0.25 and 0.63 rad, the
+  // car turned in 0.35 m late and knocked three outer cones. A turn under way is now never
+  // straightened first (control/manoeuvre.cpp, kCommittedSteerShare)
+  const RunResult r = run_shipped("trackdrive", 7177, "hairpin",
+                                  {"track.generate.profile=hard", "driver.trackdrive_laps=1"});
+  EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
+  EXPECT_TRUE(r.referee.cones_hit.empty()) << r.referee.cones_hit.size() << " cones hit";
+  EXPECT_EQ(r.referee.off_course, 0);
+}
+
 TEST(ClosedLoop, AutocrossIsDeterministicBySeed) {
   const RunResult a = run_shipped("autocross", 2, "a");
   const RunResult b = run_shipped("autocross", 2, "b");
