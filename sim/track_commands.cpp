@@ -348,13 +348,26 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
       data.push_back(std::move(d));
       plots << ", $" << name << " using 1:2 with points " << style << " title '" << title << "'";
     }
-    std::vector<std::pair<core::Vec2, std::string>> texts;
-    for (const auto& m : overlay->marks) texts.push_back({m.where, m.label});
-    for (const auto& [where, label] : overlay->lap_ends) texts.push_back({where, label});
-    for (const auto& [where, label] : texts) {
-      std::string text = label;
+    auto cleaned = [](std::string text) {
       for (char& ch : text)
         if (ch == '"' || ch == '\\') ch = ' ';
+      return text;
+    };
+    std::vector<std::pair<core::Vec2, std::string>> texts;
+    for (const auto& m : overlay->marks) texts.push_back({m.where, cleaned(m.label)});
+    // the laps end at the same gate: their labels go one under the other in a single text
+    const size_t first_lap = texts.size();
+    for (const auto& [where, label] : overlay->lap_ends) {
+      auto same_place = std::find_if(texts.begin() + static_cast<std::ptrdiff_t>(first_lap),
+                                     texts.end(), [&where](const auto& t) {
+                                       return (t.first - where).norm() < 5.0;
+                                     });
+      if (same_place == texts.end())
+        texts.push_back({where, cleaned(label)});
+      else
+        same_place->second += "\\n" + cleaned(label);
+    }
+    for (const auto& [where, text] : texts) {
       labels << "set label \"" << text << "\" at " << where.x() << "," << where.y()
              << " offset 1,1 font ',9' tc rgb '#303030' front noenhanced\n";
     }
