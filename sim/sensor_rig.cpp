@@ -278,8 +278,8 @@ std::string lidar_review_script(int index, bool with_detections) {
                   range + "]\nset grid\nset key at screen " + screen_x(kReviewPlotPx[2] + 16) +
                   ", screen " + screen_y(kReviewPlotPx[1]) + " left top Left reverse box\n";
   if (!with_detections) s += "set label 1 'no detector ran on this sweep' at graph 0.02, graph 0.97\n";
-  s += "plot $ground using 1:2 with dots lc rgb '#c8c8c8' title 'ground returns', "
-       "$returns using 1:2 with dots lc rgb '#404040' title 'cone returns', "
+  s += "plot $ground using 1:2 with points pt 7 ps 0.12 lc rgb '#c8c8c8' title 'ground returns', "
+       "$returns using 1:2 with points pt 7 ps 0.2 lc rgb '#404040' title 'cone returns', "
        "$blue using 1:2 with points pt 7 ps 1.3 lc rgb '#1f4fff' title 'blue cone (true)', "
        "$yellow using 1:2 with points pt 7 ps 1.3 lc rgb '#e8c000' title 'yellow cone (true)', "
        "$orange using 1:2 with points pt 7 ps 1.3 lc rgb '#ff8c00' title 'orange cone (true)', "
