@@ -34,6 +34,30 @@ int cluster_label(const slam::frontend::LidarCone& cone, const core::PointCloudL
 
 }  // namespace
 
+LidarSweepOutcome judge_lidar_sweep(const sensors::LidarScan& scan,
+                                    const slam::frontend::LidarDetections& detections,
+                                    const tracks::Track& track,
+                                    const std::function<bool(int)>& is_knocked) {
+  LidarSweepOutcome out;
+  std::vector<bool> found(static_cast<size_t>(track.next_id()), false);
+  for (const auto& cone : detections.cones) {
+    const int id = cluster_label(cone, scan.labels);
+    out.detection_cone.push_back(id >= 0 ? id : -1);
+    if (id >= 0 && static_cast<size_t>(id) < found.size()) found[static_cast<size_t>(id)] = true;
+  }
+  std::vector<int> returns(found.size(), 0);
+  for (int id : scan.labels.cone_id)
+    if (id >= 0 && static_cast<size_t>(id) < returns.size()) ++returns[static_cast<size_t>(id)];
+  const core::Pose2 sensor = scan.labels.sensor_pose_end.planar();
+  for (const tracks::Cone& c : track.cones) {
+    const auto i = static_cast<size_t>(c.id);
+    if (found[i] || returns[i] < kMinReturns || (is_knocked && is_knocked(c.id))) continue;
+    if (sensor.inverse_transform(c.position).norm() > kScoreRangeM) continue;
+    out.missed.push_back(c.id);
+  }
+  return out;
+}
+
 core::Pose2 motion_over(const slam::frontend::SweepMotion& m, double dt) {
   return slam::frontend::motion_over(m.speed_mps, m.yaw_rate_rps, dt);
 }

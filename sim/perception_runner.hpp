@@ -32,6 +32,23 @@ struct DeliveredDetections {
   core::Pose2 capture_pose;
 };
 
+/// How one LiDAR sweep's detections fared against the true cones (what the review image of a
+/// dumped sweep draws), judged as the perception scorer of "cones that returned points" does.
+struct LidarSweepOutcome {
+  /// Per detection, the true cone most of its points hit; -1 a false positive (mostly ground,
+  /// or no cone has a majority).
+  std::vector<int> detection_cone;
+  /// The true cones standing within 30 m of the sensor (all round) that returned at least 3
+  /// points in this sweep and that no detection stands for.
+  std::vector<int> missed;
+};
+
+/// Judges a sweep's detections with its point labels; the sensor's place is the sweep's end.
+LidarSweepOutcome judge_lidar_sweep(const sensors::LidarScan& scan,
+                                    const slam::frontend::LidarDetections& detections,
+                                    const tracks::Track& track,
+                                    const std::function<bool(int)>& is_knocked);
+
 /// Where a scenario's perception sees cones reliably: the sensor's place on the car, its field
 /// of view and the ranges within which a standing cone is detected.
 struct PerceptionView {

@@ -383,15 +383,6 @@ std::string read_text(const fs::path& file, const std::string& what) {
   return s.str();
 }
 
-// trajectory.csv: the columns the page needs, by name
-struct Trajectory {
-  std::vector<std::string> lanes;  // shadow lanes with columns
-  // per row: t, x, y, yaw, steer, est x, est y, est yaw, then x, y, yaw per shadow lane
-  std::vector<float> rows;
-  size_t width = 0;
-  size_t count = 0;
-};
-
 std::vector<std::string> split(const std::string& line, char sep) {
   std::vector<std::string> out;
   std::string cur;
@@ -407,7 +398,7 @@ std::vector<std::string> split(const std::string& line, char sep) {
   return out;
 }
 
-Trajectory read_trajectory(const fs::path& file, const std::vector<std::string>& shadows) {
+RunTrajectory read_trajectory(const fs::path& file, const std::vector<std::string>& shadows) {
   const std::string text =
       read_text(file,
                 "the run's trajectory (t_s, x_m, y_m, yaw_rad, steer_rad, est_x_m, est_y_m, "
@@ -427,7 +418,7 @@ Trajectory read_trajectory(const fs::path& file, const std::vector<std::string>&
   for (const char* name :
        {"t_s", "x_m", "y_m", "yaw_rad", "steer_rad", "est_x_m", "est_y_m", "est_yaw_rad"})
     cols.push_back(column(name));
-  Trajectory t;
+  RunTrajectory t;
   for (const std::string& lane : shadows) {
     if (std::find(header.begin(), header.end(), lane + "_x_m") == header.end()) continue;
     t.lanes.push_back(lane);
@@ -469,13 +460,14 @@ fs::path default_three_js_dir() {
   return "/usr/share/javascript/three";
 }
 
-fs::path write_replay_page(const fs::path& run_dir, const fs::path& three_js_dir) {
+RunFolder read_run_folder(const fs::path& run_dir) {
+  RunFolder run;
   std::error_code ec;
   if (!fs::is_directory(run_dir, ec))
     throw core::InputError(run_dir.string(), 0, "not a folder: expected a run folder");
   // metrics.json: the verdict and the referee's events
   const fs::path metrics_file = run_dir / "metrics.json";
-  nlohmann::json metrics;
+  nlohmann::json& metrics = run.metrics;
   {
     const std::string text =
         read_text(metrics_file,
@@ -499,14 +491,25 @@ fs::path write_replay_page(const fs::path& run_dir, const fs::path& three_js_dir
   if (metrics.contains("slam_shadows") && metrics["slam_shadows"].is_array())
     for (const auto& s : metrics["slam_shadows"])
       if (s.is_string()) shadows.push_back(s.get<std::string>());
-  const Trajectory traj = read_trajectory(run_dir / "trajectory.csv", shadows);
+  run.trajectory = read_trajectory(run_dir / "trajectory.csv", shadows);
   const fs::path track_file = run_dir / "track.csv";
   if (!fs::exists(track_file, ec))
     throw core::InputError(track_file.string(), 0,
                            "missing: the run's cones (EUFS CSV), which `conesim run` writes");
-  const tracks::Track track = tracks::read_track(track_file);
-  std::optional<ReplayLog> log;
-  if (fs::exists(run_dir / kReplayLogFile, ec)) log = read_replay_log(run_dir / kReplayLogFile);
+  run.track = tracks::read_track(track_file);
+  if (fs::exists(run_dir / kReplayLogFile, ec))
+    run.log = read_replay_log(run_dir / kReplayLogFile);
+  return run;
+}
+
+
+fs::path write_replay_page(const fs::path& run_dir, const fs::path& three_js_dir) {
+  const RunFolder run = read_run_folder(run_dir);
+  const nlohmann::json& metrics = run.metrics;
+  const RunTrajectory& traj = run.trajectory;
+  const tracks::Track& track = run.track;
+  const std::optional<ReplayLog>& log = run.log;
+  std::error_code ec;
 
   const fs::path three_file = three_js_dir / "three.min.js";
   const fs::path orbit_file = three_js_dir / "examples/js/controls/OrbitControls.js";

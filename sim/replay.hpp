@@ -10,6 +10,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -119,6 +121,27 @@ struct ReplayLog {
 
 /// Reads a replay.bin; core::InputError naming the file and the byte offset when it is not one.
 ReplayLog read_replay_log(const std::filesystem::path& file);
+
+/// trajectory.csv as the replay reads it: the columns it needs, by name.
+struct RunTrajectory {
+  /// The shadow SLAM lanes that have columns.
+  std::vector<std::string> lanes;
+  /// Per row: t, x, y, yaw, steer, est x, est y, est yaw, then x, y, yaw per shadow lane.
+  std::vector<float> rows;
+  size_t width = 0;
+  size_t count = 0;
+};
+
+/// A run folder as `conesim view` reads it: metrics.json (its referee events checked),
+/// trajectory.csv, track.csv and replay.bin when there. core::InputError naming the file when
+/// the folder or one of the three is missing or not what it should be.
+struct RunFolder {
+  nlohmann::json metrics;
+  RunTrajectory trajectory;
+  tracks::Track track;
+  std::optional<ReplayLog> log;
+};
+RunFolder read_run_folder(const std::filesystem::path& run_dir);
 
 /// `conesim view RUN_DIR`: writes RUN_DIR/replay.html from trajectory.csv, track.csv,
 /// metrics.json and, when there, replay.bin (the LiDAR and the growing maps). A folder without

@@ -694,6 +694,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   // the path driven and its speed, for the pictures
   std::vector<core::Vec2> driven;
   std::vector<double> driven_speed_mps;
+  std::vector<core::Vec2> lap_ends;
   // trajectory.csv, each shadow back-end's estimate beside the driving one's; the shadows'
   // columns come after the run from the time and the odometry of each row
   const std::vector<std::string> shadow_lanes =
@@ -821,6 +822,9 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       if (options.plot) {
         driven.push_back(truth.pose.position());
         driven_speed_mps.push_back(truth.vx_mps);
+        // where each lap was counted, for run.png
+        while (static_cast<int>(lap_ends.size()) < referee.laps())
+          lap_ends.push_back(truth.pose.position());
       }
       char row[200];
       std::snprintf(row, sizeof(row), "%.3f,%.4f,%.4f,%.5f,%.3f,%.5f,%.3f,%.4f,%.4f,%.5f",
@@ -1034,7 +1038,15 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     }
   };
   if (options.plot) {
-    PlotOverlay overlay{driven, r.cones_hit, "", {}};
+    PlotOverlay overlay{driven, r.cones_hit, "", {}, driven_speed_mps, {}};
+    for (size_t k = 0; k < lap_ends.size(); ++k) {
+      char lap[64];
+      if (k < r.lap_times_s.size())
+        std::snprintf(lap, sizeof(lap), "lap %zu: %.2f s", k + 1, r.lap_times_s[k]);
+      else
+        std::snprintf(lap, sizeof(lap), "lap %zu", k + 1);
+      overlay.lap_ends.push_back({lap_ends[k], lap});
+    }
     char summary[200];
     std::snprintf(summary, sizeof(summary), "%s, %d laps, %.2f s, %zu cones hit, %d off-course",
                   r.completed ? "completed" : ("DNF: " + r.dnf_reason).c_str(), r.laps,

@@ -7,9 +7,12 @@
 #include <fstream>
 #include <iterator>
 #include <nlohmann/json.hpp>
+#include <functional>
 #include <set>
+#include <sstream>
 #include <stdexcept>
 
+#include "core/cone.hpp"
 #include "sensors/png_writer.hpp"
 #include "sim/gnuplot.hpp"
 #include "sim/json_text.hpp"
@@ -79,42 +82,231 @@ void write_pcd(const fs::path& file, const core::PointCloud& cloud,
   write_text(file, text);
 }
 
-// draws each detected cone's box (two pixels wide) in its class colour
-void draw_boxes(const slam::frontend::StereoDetections& detections, core::RgbImage& image) {
-  auto colour = [](core::ConeClass c) -> std::array<uint8_t, 3> {
-    switch (c) {
-      case core::ConeClass::kBlue:
-        return {40, 90, 255};
-      case core::ConeClass::kYellow:
-        return {255, 230, 0};
-      case core::ConeClass::kOrangeSmall:
-        return {255, 120, 0};
-      case core::ConeClass::kOrangeBig:
-        return {255, 0, 160};
-      case core::ConeClass::kUnknown:
-        break;
-    }
-    return {255, 255, 255};
-  };
-  auto put = [&image](int x, int y, const std::array<uint8_t, 3>& rgb) {
-    if (x < 0 || y < 0 || x >= image.width_px || y >= image.height_px) return;
-    const size_t i = 3 * (static_cast<size_t>(y) * image.width_px + x);
-    image.rgb[i] = rgb[0], image.rgb[i + 1] = rgb[1], image.rgb[i + 2] = rgb[2];
-  };
-  for (const auto& cone : detections.cones) {
-    const auto rgb = colour(cone.observation.cls);
-    const auto& b = cone.box;
-    for (int k = 0; k < 2; ++k) {
-      for (int x = b.x - k; x <= b.x + b.width + k; ++x) {
-        put(x, b.y - k, rgb);
-        put(x, b.y + b.height + k, rgb);
-      }
-      for (int y = b.y - k; y <= b.y + b.height + k; ++y) {
-        put(b.x - k, y, rgb);
-        put(b.x + b.width + k, y, rgb);
-      }
-    }
+// a cone class as the review images name it, and its colour there
+const char* class_name(core::ConeClass c) {
+  switch (c) {
+    case core::ConeClass::kBlue:
+      return "blue";
+    case core::ConeClass::kYellow:
+      return "yellow";
+    case core::ConeClass::kOrangeSmall:
+      return "orange";
+    case core::ConeClass::kOrangeBig:
+      return "big orange";
+    case core::ConeClass::kUnknown:
+      break;
   }
+  return "unknown";
+}
+
+int class_rgb(core::ConeClass c) {
+  switch (c) {
+    case core::ConeClass::kBlue:
+      return 0x3c78ff;
+    case core::ConeClass::kYellow:
+      return 0xffe600;
+    case core::ConeClass::kOrangeSmall:
+      return 0xff8c00;
+    case core::ConeClass::kOrangeBig:
+      return 0xff3c00;
+    case core::ConeClass::kUnknown:
+      break;
+  }
+  return 0xffffff;
+}
+
+// A true cone's box in the left image: the bounding box of its base circle and apex projected
+// through the pinhole, clipped to the image, and how much of it no nearer cone hides.
+struct TrueBox {
+  int id = -1;
+  core::ConeClass cls = core::ConeClass::kUnknown;
+  double range_m = 0.0;
+  double depth_m = 0.0;
+  double x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  double visible = 1.0;
+};
+
+// A cone counts as seen when at least this much of its box is in the image and unhidden.
+constexpr double kMinVisibleFraction = 0.3;
+
+std::vector<TrueBox> true_boxes(const core::StereoFrame& frame, const core::Pose3& left_in_track,
+                                const tracks::Track& track,
+                                const std::function<bool(int)>& is_knocked) {
+  const auto& k = frame.intrinsics;
+  const Eigen::Quaterniond to_camera = left_in_track.orientation.conjugate();
+  std::vector<TrueBox> boxes;
+  for (const tracks::Cone& c : track.cones) {
+    if (is_knocked(c.id)) continue;
+    const core::ConeSize size = core::cone_size(c.cls);
+    const Eigen::Vector3d base(c.position.x(), c.position.y(), 0.0);
+    const Eigen::Vector3d centre = to_camera * (base - left_in_track.position);
+    if (centre.z() < 0.5 || centre.norm() > 40.0) continue;
+    TrueBox b{c.id, c.cls, (c.position - left_in_track.position.head<2>()).norm(), centre.z(),
+              1e9, 1e9, -1e9, -1e9, 1.0};
+    bool behind = false;
+    for (int i = 0; i <= 8; ++i) {
+      // eight points round the base, then the apex
+      const double a = i * 2.0 * M_PI / 8.0;
+      const Eigen::Vector3d offset =
+          i == 8 ? Eigen::Vector3d(0, 0, size.height_m)
+                 : Eigen::Vector3d(0.5 * size.base_m * std::cos(a), 0.5 * size.base_m * std::sin(a), 0.0);
+      const Eigen::Vector3d p = base + offset;
+      const Eigen::Vector3d q = to_camera * (p - left_in_track.position);
+      if (q.z() <= 0.05) {
+        behind = true;
+        break;
+      }
+      const double u = k.fx * q.x() / q.z() + k.cx, v = k.fy * q.y() / q.z() + k.cy;
+      b.x0 = std::min(b.x0, u), b.x1 = std::max(b.x1, u);
+      b.y0 = std::min(b.y0, v), b.y1 = std::max(b.y1, v);
+    }
+    if (behind || b.x1 < 0 || b.y1 < 0 || b.x0 >= k.width_px || b.y0 >= k.height_px) continue;
+    boxes.push_back(b);
+  }
+  // occlusion, nearest first: the part of each box inside the image that no nearer box covers
+  std::sort(boxes.begin(), boxes.end(),
+            [](const TrueBox& a, const TrueBox& b) { return a.depth_m < b.depth_m; });
+  std::vector<uint8_t> covered(static_cast<size_t>(k.width_px) * k.height_px, 0);
+  for (TrueBox& b : boxes) {
+    const int x0 = static_cast<int>(std::floor(b.x0)), x1 = static_cast<int>(std::ceil(b.x1));
+    const int y0 = static_cast<int>(std::floor(b.y0)), y1 = static_cast<int>(std::ceil(b.y1));
+    int64_t total = 0, seen = 0;
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) {
+        ++total;
+        if (x < 0 || y < 0 || x >= k.width_px || y >= k.height_px) continue;
+        uint8_t& cell = covered[static_cast<size_t>(y) * k.width_px + x];
+        if (!cell) ++seen;
+        cell = 1;
+      }
+    b.visible = total > 0 ? static_cast<double>(seen) / total : 0.0;
+    b.x0 = std::max(0.0, b.x0), b.y0 = std::max(0.0, b.y0);
+    b.x1 = std::min(k.width_px - 1.0, b.x1), b.y1 = std::min(k.height_px - 1.0, b.y1);
+  }
+  std::erase_if(boxes, [](const TrueBox& b) { return b.visible < kMinVisibleFraction; });
+  return boxes;
+}
+
+// True boxes farther than this carry no label in the camera review image (their box is drawn).
+constexpr double kLabelledTrueRangeM = 20.0;
+// The camera review image is drawn at twice the camera's size, so that its labels can be read.
+constexpr int kCameraReviewScale = 2;
+
+// gnuplot's text in single quotes: a quote doubled
+std::string quoted(const std::string& text) {
+  std::string out = "'";
+  for (char c : text) out += c == '\'' ? std::string("''") : std::string(1, c);
+  return out + "'";
+}
+
+// The camera review image: the raw left image, the detected boxes in their class colour
+// (solid) labelled with class, track id and range above, the true boxes (dashed magenta)
+// labelled with class and range below, and a legend.
+void render_camera_review(const fs::path& raw_png, const fs::path& out_png, int width, int height,
+                          const std::vector<TrueBox>& truth,
+                          const slam::frontend::StereoDetections* detections,
+                          const std::vector<int>& track_ids, const core::Vec2& camera_xy) {
+  // a box as four edges (x, y, dx, dy, colour) in gnuplot's axes: y up from the bottom
+  auto edges = [height](PlotData& d, double x0, double y0, double x1, double y1, int rgb) {
+    const double top = height - y0, bottom = height - y1;
+    d.rows.push_back({x0, top, x1 - x0, 0.0, double(rgb)});
+    d.rows.push_back({x0, bottom, x1 - x0, 0.0, double(rgb)});
+    d.rows.push_back({x0, bottom, 0.0, top - bottom, double(rgb)});
+    d.rows.push_back({x1, bottom, 0.0, top - bottom, double(rgb)});
+  };
+  PlotData true_edges{"truth", {}}, found_edges{"detected", {}};
+  std::ostringstream labels;
+  char text[96];
+  for (const TrueBox& b : truth) {
+    edges(true_edges, b.x0, b.y0, b.x1, b.y1, 0xff40ff);
+    // far boxes are small and crowd each other: only the near ones are labelled
+    if (b.range_m > kLabelledTrueRangeM) continue;
+    std::snprintf(text, sizeof(text), "true %s %.1f m", class_name(b.cls), b.range_m);
+    labels << "set label " << quoted(text) << " at " << b.x0 << "," << height - b.y1 - 2
+           << " left offset 0,-0.6 font ',8' tc rgb '#ff40ff' front noenhanced\n";
+  }
+  if (detections)
+    for (size_t i = 0; i < detections->cones.size(); ++i) {
+      const auto& c = detections->cones[i];
+      const int rgb = class_rgb(c.observation.cls);
+      edges(found_edges, c.box.x, c.box.y, c.box.x + c.box.width, c.box.y + c.box.height, rgb);
+      const int id = i < track_ids.size() ? track_ids[i] : -1;
+      const double range = (c.observation.position - camera_xy).norm();
+      if (id >= 0)
+        std::snprintf(text, sizeof(text), "%s #%d %.1f m", class_name(c.observation.cls), id,
+                      range);
+      else
+        std::snprintf(text, sizeof(text), "%s %.1f m", class_name(c.observation.cls), range);
+      char colour[16];
+      std::snprintf(colour, sizeof(colour), "#%06x", rgb);
+      labels << "set label " << quoted(text) << " at " << c.box.x << "," << height - c.box.y + 2
+             << " left offset 0,0.6 font ',9' tc rgb '" << colour << "' front noenhanced\n";
+    }
+  std::ostringstream script;
+  script << "set margins 0,0,0,0\nunset border\nunset tics\nset xrange [0:" << width
+         << "]\nset yrange [0:" << height << "]\n"
+         << "set key top right opaque box tc rgb '#000000' font ',9' samplen 3\n"
+         << labels.str() << "plot " << quoted(raw_png.string())
+         << " binary filetype=png with rgbimage notitle, "
+            "$detected using 1:2:3:4:5 with vectors nohead lw 2 lc rgb variable "
+            "title 'detected: class #track-id range (solid, class colour)', "
+            "$truth using 1:2:3:4 with vectors nohead lw 1.5 dt 2 lc rgb '#ff40ff' "
+            "title 'true: projected from the track, hidden by nearer cones left out (dashed magenta)'\n";
+  for (PlotData* d : {&true_edges, &found_edges})
+    if (d->rows.empty()) d->rows.push_back({-1e6, -1e6, 0.0, 0.0, 0.0});
+  render_png(script.str(), {found_edges, true_edges}, out_png, kCameraReviewScale * width,
+             kCameraReviewScale * height);
+}
+
+// the LiDAR review image: a square plot of +-30 m at a fixed place in the picture (so a pixel
+// can be found from a position: the sidecar gives the box), the legend to its right
+constexpr double kReviewRangeM = 30.0;
+constexpr std::array<int, 2> kReviewImagePx{1140, 800};
+constexpr std::array<int, 4> kReviewPlotPx{60, 40, 780, 760};
+
+std::string lidar_review_script(int index, bool with_detections) {
+  auto screen_x = [](int px) { return std::to_string(px / double(kReviewImagePx[0])); };
+  auto screen_y = [](int px) { return std::to_string(1.0 - px / double(kReviewImagePx[1])); };
+  const std::string range = std::to_string(kReviewRangeM);
+  std::string s = "set title 'LiDAR sweep " + std::to_string(index) +
+                  ": sensor frame, x forward, y left [m]'\n"
+                  "set lmargin at screen " + screen_x(kReviewPlotPx[0]) +
+                  "\nset rmargin at screen " + screen_x(kReviewPlotPx[2]) +
+                  "\nset tmargin at screen " + screen_y(kReviewPlotPx[1]) +
+                  "\nset bmargin at screen " + screen_y(kReviewPlotPx[3]) + "\n" +
+                  "set xrange [-" + range + ":" + range + "]\nset yrange [-" + range + ":" +
+                  range + "]\nset grid\nset key at screen " + screen_x(kReviewPlotPx[2] + 16) +
+                  ", screen " + screen_y(kReviewPlotPx[1]) + " left top Left reverse box\n";
+  if (!with_detections) s += "set label 1 'no detector ran on this sweep' at graph 0.02, graph 0.97\n";
+  s += "plot $ground using 1:2 with points pt 7 ps 0.12 lc rgb '#c8c8c8' title 'ground returns', "
+       "$returns using 1:2 with points pt 7 ps 0.2 lc rgb '#404040' title 'cone returns', "
+       "$blue using 1:2 with points pt 7 ps 1.3 lc rgb '#1f4fff' title 'blue cone (true)', "
+       "$yellow using 1:2 with points pt 7 ps 1.3 lc rgb '#e8c000' title 'yellow cone (true)', "
+       "$orange using 1:2 with points pt 7 ps 1.3 lc rgb '#ff8c00' title 'orange cone (true)', "
+       "$big_orange using 1:2 with points pt 7 ps 2.0 lc rgb '#b04000' "
+       "title 'big orange cone (true)'";
+  if (with_detections)
+    s += ", $found using 1:2 with points pt 6 ps 2.6 lw 2 lc rgb '#00b000' "
+         "title 'detection: found'"
+         ", $missed using 1:2 with points pt 2 ps 3.0 lw 3 lc rgb '#ff0000' "
+         "title 'missed (>= 3 returns, not detected)'"
+         ", $false_positive using 1:2 with points pt 4 ps 2.6 lw 2 lc rgb '#e000e0' "
+         "title 'detection: false positive'";
+  return s + "\n";
+}
+
+// the data blocks in the order the script plots them; an empty block gets one row far outside
+// the plot so that its legend entry still shows
+std::vector<PlotData> lidar_review_data(const PlotData& ground, const PlotData& returns,
+                                        const std::array<PlotData, 4>& by_class,
+                                        const PlotData& found, const PlotData& missed,
+                                        const PlotData& false_positive) {
+  std::vector<PlotData> data{ground, returns};
+  data.insert(data.end(), by_class.begin(), by_class.end());
+  data.insert(data.end(), {found, missed, false_positive});
+  for (PlotData& d : data)
+    if (d.rows.empty()) d.rows.push_back({1e6, 1e6});
+  return data;
 }
 
 }  // namespace
@@ -211,6 +403,7 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
     if (name == "camera") {
       fs::create_directories(run_dir_ / "images/camera/left");
       fs::create_directories(run_dir_ / "images/camera/right");
+      fs::create_directories(run_dir_ / "images/camera/review");
     } else {
       fs::create_directories(run_dir_ / "images" / name);
     }
@@ -444,50 +637,72 @@ void SensorRig::dump_sweep(int index, const sensors::LidarScan& scan,
   for (int label : labels)
     if (label >= 0) cone_ids[std::to_string(label)] = track_.file_id(label);
   with_detections["label_cone_ids"] = cone_ids;
-  // the detector's cones, in the sensor frame at the sweep's end
-  PlotData found{"detections", {}};
+  // the detector's cones, in the sensor frame at the sweep's end, each judged against the true
+  // cones (found, false positive) and the cones it missed
+  std::optional<LidarSweepOutcome> outcome;
   if (detections) {
+    outcome = judge_lidar_sweep(scan, *detections, track_, [this](int id) {
+      return referee_ && referee_->is_knocked(id);
+    });
     nlohmann::json cones = nlohmann::json::array();
-    for (const auto& c : detections->cones) {
+    for (size_t i = 0; i < detections->cones.size(); ++i) {
+      const auto& c = detections->cones[i];
+      const int truth = outcome->detection_cone[i];
       cones.push_back({{"x_sensor", c.centre_sensor.x()},
                        {"y_sensor", c.centre_sensor.y()},
                        {"x_vehicle", c.observation.position.x()},
                        {"y_vehicle", c.observation.position.y()},
                        {"class", std::string(core::to_string(c.observation.cls))},
                        {"points", c.points},
-                       {"height_m", c.height_m}});
-      found.rows.push_back({c.centre_sensor.x(), c.centre_sensor.y(),
-                            static_cast<double>(static_cast<int>(c.observation.cls))});
+                       {"height_m", c.height_m},
+                       {"true_cone_id", truth < 0 ? nlohmann::json(-1)
+                                                  : nlohmann::json(track_.file_id(truth))}});
     }
     with_detections["detections"] = cones;
     with_detections["detections_stamp_us"] = detections->stamp;
   }
+  // the true cones near the sensor, in the sensor frame, and which were missed
+  const core::Pose2 sensor = scan.labels.sensor_pose_end.planar();
+  const std::set<int> missed =
+      outcome ? std::set<int>(outcome->missed.begin(), outcome->missed.end()) : std::set<int>{};
+  nlohmann::json missed_json = nlohmann::json::array();
+  std::array<PlotData, 4> by_class{PlotData{"blue", {}}, PlotData{"yellow", {}},
+                                   PlotData{"orange", {}}, PlotData{"big_orange", {}}};
+  PlotData missed_xy{"missed", {}};
+  for (const tracks::Cone& c : track_.cones) {
+    if (referee_ && referee_->is_knocked(c.id)) continue;
+    const core::Vec2 p = sensor.inverse_transform(c.position);
+    if (std::abs(p.x()) > kReviewRangeM || std::abs(p.y()) > kReviewRangeM) continue;
+    const auto k = static_cast<size_t>(c.cls);
+    if (k < by_class.size()) by_class[k].rows.push_back({p.x(), p.y()});
+    if (!missed.count(c.id)) continue;
+    missed_xy.rows.push_back({p.x(), p.y()});
+    missed_json.push_back(
+        {{"true_cone_id", track_.file_id(c.id)}, {"x_sensor", p.x()}, {"y_sensor", p.y()}});
+  }
+  if (outcome) with_detections["missed"] = missed_json;
+  with_detections["review_png"] = {
+      {"plot_px_left_top_right_bottom",
+       {kReviewPlotPx[0], kReviewPlotPx[1], kReviewPlotPx[2], kReviewPlotPx[3]}},
+      {"range_m", kReviewRangeM},
+      {"frame", "sensor frame at the sweep's end: x right in the image, y up"}};
   write_text(dir / frame_name(index, "json"), json_text(with_detections, 2) + "\n");
-  if (dump_.lidar_png) {
-    PlotData cones{"cones", {}}, ground{"ground", {}};
+  if (dump_.review_png) {
+    PlotData returns{"returns", {}}, ground{"ground", {}}, found{"found", {}},
+        false_positive{"false_positive", {}};
     for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
       const auto& p = scan.cloud.points[i];
-      if (std::hypot(p.x, p.y) > 30.0) continue;
-      (scan.labels.cone_id[i] >= 0 ? cones : ground).rows.push_back({p.x, p.y, p.intensity});
+      if (std::abs(p.x) > kReviewRangeM || std::abs(p.y) > kReviewRangeM) continue;
+      (scan.labels.cone_id[i] >= 0 ? returns : ground).rows.push_back({p.x, p.y});
     }
-    const std::string script =
-        "set title 'LiDAR sweep " + std::to_string(index) +
-        " (sensor frame, within 30 m; colour = intensity)'\n"
-        "set size ratio -1\nset xrange [-30:30]\nset yrange [-30:30]\nset grid\n"
-        "set palette defined (0 '#101060', 60 '#3060ff', 130 '#ffd000', 255 '#ffffff')\n"
-        "set cbrange [0:255]\nset xlabel 'x [m]'\nset ylabel 'y [m]'\n"
-        "plot $ground using 1:2 with dots lc rgb '#b0b0b0' title 'ground', "
-        "$cones using 1:2:3 with points pt 7 ps 0.4 palette title 'cone returns'" +
-        std::string(found.rows.empty()
-                        ? ""
-                        : ", $detections using 1:2 with points pt 6 ps 2.2 lw 2 lc rgb "
-                          "'#e00000' title 'detected cones'") +
-        "\n";
-    if (cones.rows.empty()) cones.rows.push_back({0.0, 0.0, 0.0});
-    if (ground.rows.empty()) ground.rows.push_back({0.0, 0.0, 0.0});
-    std::vector<PlotData> data{ground, cones};
-    if (!found.rows.empty()) data.push_back(found);
-    render_png(script, data, dir / frame_name(index, "png"), 900, 900);
+    if (detections)
+      for (size_t i = 0; i < detections->cones.size(); ++i)
+        (outcome->detection_cone[i] >= 0 ? found : false_positive)
+            .rows.push_back({detections->cones[i].centre_sensor.x(),
+                             detections->cones[i].centre_sensor.y()});
+    render_png(lidar_review_script(index, detections.has_value()),
+               lidar_review_data(ground, returns, by_class, found, missed_xy, false_positive),
+               dir / frame_name(index, "png"), kReviewImagePx[0], kReviewImagePx[1]);
   }
 }
 
@@ -505,6 +720,7 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
 
   // the stereo cone detector on the pair; its cones reach SLAM after the latency
   std::optional<slam::frontend::StereoDetections> detections;
+  std::vector<int> track_ids;  // the tracker's id of each detection (stereo perception)
   if (perception_ && perception_->is_plugin() && perception_->uses_camera()) {
     // a perception plug-in: its cones of the pair reach SLAM after the camera latency, unless
     // it also takes the LiDAR (then its sweeps deliver, and it fuses the pairs itself)
@@ -530,20 +746,29 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
     detections->stamp = t;
     auto d = perception_->on_stereo(frame_, *detections, car.truth().pose,
                                     [&referee](int id) { return referee.is_knocked(id); });
-    if (d) enqueue(t + camera_latency_us_, std::move(*d), 1);
+    if (d) {
+      for (const core::ConeObservation& o : d->observations.cones) track_ids.push_back(o.track_id);
+      enqueue(t + camera_latency_us_, std::move(*d), 1);
+    }
   }
 
   // the dump: left and right PNG and a sidecar with the calibration and the true poses
   if (!dump_.sensors.count("camera") || index % dump_.every != 0) return;
   const fs::path dir = run_dir_ / "images/camera";
-  // the detections drawn on the left image, boxes in their class colour
-  core::RgbImage left = frame_.left;
-  if (detections) draw_boxes(*detections, left);
-  for (const auto& [side, image] : {std::pair{"left", &left}, {"right", &frame_.right}}) {
+  // the raw pair as rendered; the review image beside it draws the boxes on the left one
+  for (const auto& [side, image] : {std::pair{"left", &frame_.left}, {"right", &frame_.right}}) {
     const std::string error =
         sensors::write_png((dir / side / frame_name(index, "png")).string(), *image);
     if (!error.empty()) throw std::runtime_error(error);
   }
+  const std::vector<TrueBox> truth =
+      true_boxes(frame_, frame_labels_.left_in_track, track_,
+                 [&referee](int id) { return referee.is_knocked(id); });
+  if (dump_.review_png)
+    render_camera_review(dir / "left" / frame_name(index, "png"),
+                         dir / "review" / frame_name(index, "png"), frame_.left.width_px,
+                         frame_.left.height_px, truth, detections ? &*detections : nullptr,
+                         track_ids, frame_.left_in_vehicle.position.head<2>());
   const auto& k = frame_.intrinsics;
   const nlohmann::json sidecar = {{"stamp_us", t},
                                   {"intrinsics",
@@ -572,6 +797,14 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
                        {"depth_m", c.depth_m}});
     with_detections["detections"] = cones;
   }
+  nlohmann::json true_json = nlohmann::json::array();
+  for (const TrueBox& b : truth)
+    true_json.push_back({{"true_cone_id", track_.file_id(b.id)},
+                         {"class", std::string(core::to_string(b.cls))},
+                         {"box_x0y0x1y1", {b.x0, b.y0, b.x1, b.y1}},
+                         {"range_m", b.range_m},
+                         {"visible_fraction", b.visible}});
+  with_detections["true_boxes"] = true_json;
   write_text(dir / frame_name(index, "json"), json_text(with_detections, 2) + "\n");
 }
 

@@ -32,9 +32,12 @@ namespace conesim::sim {
 struct DumpOptions {
   /// Any of "lidar", "camera", "detections". Dumping a sensor switches it on.
   std::set<std::string> sensors;
-  int every = 1;
-  /// Top-down PNG per LiDAR scan (gnuplot; slow, so only for dumped scans).
-  bool lidar_png = true;
+  /// Every Nth frame of each sensor: every frame only when asked (a dumped frame costs a PNG
+  /// through gnuplot or a file write; docs/review.md measures it).
+  int every = 10;
+  /// The review images through gnuplot (slow, so only for dumped frames): the LiDAR's
+  /// bird's-eye view per sweep and the camera's left image with its boxes labelled.
+  bool review_png = true;
 };
 
 /// Counters for metrics.json.

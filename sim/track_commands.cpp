@@ -1,5 +1,6 @@
 #include "sim/track_commands.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -301,11 +302,25 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
 
   // a run: the driven path and the knocked cones; a bare track: its rule violations
   if (overlay) {
+    // the path in the colour of the speed when the speeds are there, with a colour bar
+    const bool by_speed = overlay->driven_speed_mps.size() == overlay->driven_path.size();
     PlotData path{"driven", {}};
-    for (const auto& p : overlay->driven_path) path.rows.push_back({p.x(), p.y()});
+    for (size_t k = 0; k < overlay->driven_path.size(); ++k) {
+      const auto& p = overlay->driven_path[k];
+      path.rows.push_back({p.x(), p.y(), by_speed ? overlay->driven_speed_mps[k] : 0.0});
+    }
     if (!path.rows.empty()) {
       data.push_back(path);
-      plots << ", $driven using 1:2 with lines lw 2 lc rgb '#d62728' title 'driven path'";
+      plots << (by_speed ? ", $driven using 1:2:3 with lines lw 3 lc palette title 'driven path "
+                           "(colour: speed)'"
+                         : ", $driven using 1:2 with lines lw 2 lc rgb '#d62728' title 'driven "
+                           "path'");
+    }
+    PlotData laps{"lap_ends", {}};
+    for (const auto& [where, label] : overlay->lap_ends) laps.rows.push_back({where.x(), where.y()});
+    if (!laps.rows.empty()) {
+      data.push_back(laps);
+      plots << ", $lap_ends using 1:2 with points pt 13 ps 2 lc rgb '#008000' title 'lap counted'";
     }
     PlotData knocked{"knocked", {}};
     for (int id : overlay->knocked_cones)
@@ -333,11 +348,27 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
       data.push_back(std::move(d));
       plots << ", $" << name << " using 1:2 with points " << style << " title '" << title << "'";
     }
-    for (const auto& m : overlay->marks) {
-      std::string text = m.label;
+    auto cleaned = [](std::string text) {
       for (char& ch : text)
         if (ch == '"' || ch == '\\') ch = ' ';
-      labels << "set label \"" << text << "\" at " << m.where.x() << "," << m.where.y()
+      return text;
+    };
+    std::vector<std::pair<core::Vec2, std::string>> texts;
+    for (const auto& m : overlay->marks) texts.push_back({m.where, cleaned(m.label)});
+    // the laps end at the same gate: their labels go one under the other in a single text
+    const size_t first_lap = texts.size();
+    for (const auto& [where, label] : overlay->lap_ends) {
+      auto same_place = std::find_if(texts.begin() + static_cast<std::ptrdiff_t>(first_lap),
+                                     texts.end(), [&where](const auto& t) {
+                                       return (t.first - where).norm() < 5.0;
+                                     });
+      if (same_place == texts.end())
+        texts.push_back({where, cleaned(label)});
+      else
+        same_place->second += "\\n" + cleaned(label);
+    }
+    for (const auto& [where, text] : texts) {
+      labels << "set label \"" << text << "\" at " << where.x() << "," << where.y()
              << " offset 1,1 font ',9' tc rgb '#303030' front noenhanced\n";
     }
   }
@@ -351,6 +382,18 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
           << violations.size() << " rule violation" << (violations.size() == 1 ? "" : "s") << "'";
   }
 
+  // the speed's colour bar, under the legend
+  std::string speed_bar = "unset colorbox\n";
+  if (overlay && !overlay->driven_path.empty() &&
+      overlay->driven_speed_mps.size() == overlay->driven_path.size()) {
+    const double top = *std::max_element(overlay->driven_speed_mps.begin(),
+                                         overlay->driven_speed_mps.end());
+    speed_bar = "set palette defined (0 '#2c1e8c', 0.35 '#1f9e89', 0.7 '#f2c81b', 1 '#d62728')\n"
+                "set cbrange [0:" + std::to_string(std::max(1.0, std::ceil(top))) + "]\n"
+                "set cblabel 'speed [m/s]'\n"
+                "set colorbox vertical user origin screen 0.86, screen 0.08 size screen 0.025, "
+                "screen 0.3\n";
+  }
   // the figure: equal axis scales, legend outside
   std::ostringstream script;
   // title text goes inside double quotes: drop characters that would end or escape it
@@ -365,7 +408,7 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
          << "\" noenhanced\n"
          << "set size ratio -1\nset grid\nset key outside right top\n"
          << "set xlabel 'x [m]'\nset ylabel 'y [m]'\n"
-         << labels.str() << "plot " << plots.str() << "\n";
+         << labels.str() << speed_bar << "plot " << plots.str() << "\n";
   render_png(script.str(), data, out_png);
 }
 

@@ -94,6 +94,10 @@ struct PlotOverlay {
     std::string label;
   };
   std::vector<Mark> marks;
+  /// The car's speed at each point of driven_path, m/s: the path is coloured by it when given.
+  std::vector<double> driven_speed_mps;
+  /// Where each lap was counted, with its label ("lap 2: 31.40 s").
+  std::vector<std::pair<core::Vec2, std::string>> lap_ends;
 };
 
 /// Plots the track with gnuplot: cones in their colours, lanes, centre line, start pose and

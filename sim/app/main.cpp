@@ -17,6 +17,7 @@
 #include "sim/json_text.hpp"
 #include "sim/regress.hpp"
 #include "sim/replay.hpp"
+#include "sim/replay_video.hpp"
 #include "sim/run.hpp"
 #include "sim/scenario.hpp"
 #include "sim/slurm.hpp"
@@ -297,13 +298,14 @@ void add_run_command(CLI::App& app, int& status) {
   cmd->add_option("--set", *sets, "Override a scenario value: key.path=value (repeatable)");
   cmd->add_flag("--no-plot", *no_plot, "Skip the PNG (no gnuplot run)");
   auto dump = std::make_shared<std::vector<std::string>>();
-  auto dump_every = std::make_shared<int>(1);
+  auto dump_every = std::make_shared<int>(conesim::sim::DumpOptions{}.every);
   cmd->add_option("--dump", *dump,
                   "Write sensor data under images/: lidar, camera, detections (comma-separated; "
                   "dumping a sensor switches it on)")
       ->delimiter(',')
       ->check(CLI::IsMember({"lidar", "camera", "detections"}));
-  cmd->add_option("--dump-every", *dump_every, "Dump every Nth frame of each sensor")
+  cmd->add_option("--dump-every", *dump_every, "Dump every Nth frame of each sensor (default 10: one a second of a "
+                  "10 Hz sensor; 1 dumps every frame, at a cost: docs/review.md)")
       ->check(CLI::Range(1, 1000000));
   auto replay = std::make_shared<bool>(false);
   cmd->add_flag("--replay", *replay,
@@ -405,9 +407,16 @@ void add_view_command(CLI::App& app) {
       "LiDAR and the growing SLAM maps when the run was made with --replay)");
   auto dir = std::make_shared<fs::path>();
   cmd->add_option("RUN_DIR", *dir, "A run folder (conesim run --out)")->required();
+  auto mp4 = std::make_shared<bool>(false);
+  auto video = std::make_shared<conesim::sim::VideoSettings>();
+  cmd->add_flag("--mp4", *mp4,
+                "Write RUN_DIR/replay.mp4 instead: the run top-down, encoded by ffmpeg");
+  cmd->add_option("--fps", video->fps, "Frames per second of the video (--mp4)")
+      ->check(CLI::PositiveNumber);
   cmd->callback([=] {
     const fs::path page =
-        conesim::sim::write_replay_page(*dir, conesim::sim::default_three_js_dir());
+        *mp4 ? conesim::sim::write_replay_video(*dir, *video)
+             : conesim::sim::write_replay_page(*dir, conesim::sim::default_three_js_dir());
     std::error_code ec;
     std::printf("%s (%.1f MB)\n", page.string().c_str(),
                 static_cast<double>(fs::file_size(page, ec)) / 1e6);

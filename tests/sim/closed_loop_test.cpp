@@ -137,7 +137,7 @@ TEST(ClosedLoop, DumpsLidarCameraAndDetectionsBesideTheRun) {
   options.plot = false;
   options.dump.sensors = {"lidar", "camera", "detections"};
   options.dump.every = 25;
-  options.dump.lidar_png = false;
+  options.dump.review_png = false;
   const RunResult r = run_scenario(s, scenario_track(s), options);
   EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
   const fs::path images = options.out_dir / "images";

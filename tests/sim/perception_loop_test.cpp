@@ -77,12 +77,15 @@ TEST(PerceptionLoop, StereoConesAreScoredAndDrawnOnTheDump) {
   // issue 6 targets for the camera: recall within 10 m, RMSE in the 5-10 m band
   EXPECT_GE(recall_within(p["stereo"], 10.0), 0.90);
   EXPECT_LE(band(p["stereo"], 5.0)["position_rmse_m"].get<double>(), 0.30);
-  // the sidecar lists the boxes that are drawn on the left image
+  // the sidecar lists the boxes that the review image draws on the left one, detected and true
   const fs::path out = fs::temp_directory_path() /
                        ("conesim-perception-stereo-" + std::to_string(::getpid()));
   nlohmann::json sidecar;
   std::ifstream(out / "images/camera/000000.json") >> sidecar;
   EXPECT_TRUE(sidecar.contains("detections"));
+  ASSERT_TRUE(sidecar.contains("true_boxes"));
+  EXPECT_FALSE(sidecar["true_boxes"].empty());
+  EXPECT_TRUE(fs::exists(out / "images/camera/review/000000.png"));
   fs::remove_all(out);
 }
 

@@ -1,0 +1,31 @@
+#pragma once
+// `conesim view RUN_DIR --mp4` (issue 16, docs/review.md): the run drawn top-down, frame by
+// frame, and encoded to RUN_DIR/replay.mp4 by ffmpeg reading raw RGB frames on a pipe.
+
+#include <filesystem>
+
+#include "sim/replay.hpp"
+
+namespace conesim::sim {
+
+inline constexpr const char* kReplayVideoFile = "replay.mp4";
+
+struct VideoSettings {
+  double fps = 15.0;
+  /// Even sizes (H.264 in yuv420p halves both).
+  int width_px = 960;
+  int height_px = 720;
+};
+
+/// Draws the whole run top-down (the cones in their class colours, a knocked one hollow from
+/// its hit; the true path white and the driving SLAM estimate magenta so far; the car's
+/// footprint; the latest LiDAR sweep from replay.bin when the run had --replay; each referee
+/// event as a red ring where it happened; a time line with the events as ticks) at `fps`, from
+/// the trajectory's first to its last row, and has ffmpeg encode it (H.264, yuv420p).
+/// core::InputError naming the file for a folder that is not a run (read_run_folder), when
+/// ffmpeg is missing (CONESIM_FFMPEG names another) or when it fails; the video goes through a
+/// partial file renamed at the end, so a failure never leaves a replay.mp4 that looks whole.
+std::filesystem::path write_replay_video(const std::filesystem::path& run_dir,
+                                         const VideoSettings& settings = {});
+
+}  // namespace conesim::sim
