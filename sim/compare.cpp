@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <set>
 #include <ostream>
 #include <sstream>
 
@@ -595,15 +596,27 @@ StudyPlan plan_study(const CompareOptions& o) {
             {fs::path(t).parent_path().string() + "/" + fs::path(t).stem().string(), file});
       }
     const std::vector<unsigned long long> seeds = o.seeds.empty() ? def.seeds : o.seeds;
+    // each track's lap for the runs' expected cost (one the reader refuses: the usual 300 m;
+    // its run says why it cannot drive)
+    std::vector<double> lap_m;
+    for (const auto& track : tracks) {
+      try {
+        lap_m.push_back(track_lap_length_m(track.second));
+      } catch (const std::exception&) {
+        lap_m.push_back(0.0);
+      }
+    }
     for (const StudyCondition& cond : def.conditions) {
       // the condition's values with the command line's after them: a typo stops here
       const std::vector<std::string> sets = joined(cond.sets, o.sets);
-      load_scenario(scenario, sets);
+      const Scenario s = load_scenario(scenario, sets);
       plan.conditions.push_back(cond);
-      for (const auto& [label, file] : tracks)
+      for (size_t t = 0; t < tracks.size(); ++t)
         for (const unsigned long long seed : seeds) {
+          const auto& [label, file] = tracks[t];
           StudyRun r{def.name, cond.name, label, file, seed, sets, {}};
           r.dir = fs::path(def.name) / cond.name / (flat(label) + "-s" + std::to_string(seed));
+          r.cost = scenario_run_cost(s, lap_m[t]);
           plan.runs.push_back(r);
         }
     }
@@ -653,9 +666,12 @@ json compare_json(const StudyPlan& plan, const std::vector<StudyResult>& results
       row["lanes"] = lanes;
       row["lane_order"] = order;
     } else {
-      const std::string reason = "exit status " + std::to_string(res.exit_code) +
-                                 (res.metrics.is_object() ? "" : ", no metrics.json") +
-                                 (res.log_tail.empty() ? "" : ": " + res.log_tail);
+      const std::string reason =
+          res.missing ? std::string("missing: no result, its shard did not run or finish it")
+                      : "exit status " + std::to_string(res.exit_code) +
+                            (res.metrics.is_object() ? "" : ", no metrics.json") +
+                            (res.log_tail.empty() ? "" : ": " + res.log_tail);
+      if (res.missing) row["missing"] = true;
       row["reason"] = reason;
       failed.push_back({{"id", r.id()}, {"dir", r.dir.string()}, {"reason", reason}});
     }
@@ -880,29 +896,121 @@ std::string compare_html(const json& c) {
   return h.str();
 }
 
+namespace {
+
+// plan.json of a shard or a rerun: the whole list, and the study's arguments for the merge
+json compare_plan_json(const fs::path& self, const StudyPlan& plan, const CompareOptions& o,
+                       const std::vector<size_t>& picked) {
+  std::vector<std::string> ids, dirs;
+  std::vector<double> costs;
+  for (const StudyRun& r : plan.runs) {
+    ids.push_back(r.id());
+    dirs.push_back(r.dir.generic_string());
+    costs.push_back(r.cost);
+  }
+  json p = shard_plan_json("conesim compare plan", self, o.args, ids, dirs, costs, o.shard, picked,
+                           o.jobs);
+  json tracks = json::array();
+  for (const fs::path& f : o.track_files) tracks.push_back(fs::absolute(f).string());
+  p["study"] = o.study;
+  p["tracks"] = tracks;
+  p["seeds"] = o.seeds;
+  p["sets"] = o.sets;
+  p["plot"] = o.plot;
+  return p;
+}
+
+// the figures, compare.json, compare.md and compare.html; the failed runs on `out`; the status
+int write_compare(json& c, const StudyPlan& plan, const std::vector<StudyResult>& results,
+                  const fs::path& out_dir, bool plot, double wall_s, std::ostream& out,
+                  std::ostream& progress) {
+  if (plot) draw_figures(plan, results, out_dir, c["figures"], progress);
+  std::ofstream(out_dir / "compare.json") << json_text(c, 2) << "\n";
+  std::ofstream(out_dir / "compare.md") << compare_markdown(c);
+  std::ofstream(out_dir / "compare.html") << compare_html(c);
+  const size_t failed = c["failed_runs"].size();
+  for (const json& f : c["failed_runs"])
+    out << "FAILED " << f["id"].get<std::string>() << " (" << f["dir"].get<std::string>()
+        << "): " << f["reason"].get<std::string>() << "\n";
+  out << plan.runs.size() - failed << " of " << plan.runs.size() << " runs gave figures ("
+      << fixed(wall_s, 0) << " s); compare.md, compare.json, compare.html in " << out_dir.string()
+      << "\n";
+  return failed == 0 ? 0 : 1;
+}
+
+// a run's metrics.json, null when it has none or a broken one
+json read_run_metrics(const fs::path& dir) {
+  json m;
+  if (std::ifstream in(dir / "metrics.json"); in) {
+    try {
+      in >> m;
+    } catch (const std::exception&) {
+      m = json();
+    }
+  }
+  return m.is_object() ? m : json();
+}
+
+}  // namespace
+
+std::vector<size_t> selected_study_runs(const StudyPlan& plan, const CompareOptions& o) {
+  std::vector<std::string> ids;
+  std::vector<double> costs;
+  for (const StudyRun& r : plan.runs) {
+    ids.push_back(r.id());
+    costs.push_back(r.cost);
+  }
+  return select_runs(ids, costs, o.shard, o.only_ids, "study, --track, --seeds and --set values");
+}
+
+json compare_without_timing(json c) {
+  if (!c.is_object()) return c;
+  for (const char* key : {"command", "wall_time_s", "jobs", "reused_runs", "shards"}) c.erase(key);
+  const auto drop_times = [](json& figures) {
+    if (!figures.is_object()) return;
+    for (const char* key :
+         {"update_cpu_ms_median", "update_ms_median", "update_cpu_ms_p99", "update_ms_p99"})
+      figures.erase(key);
+  };
+  if (c.contains("runs") && c["runs"].is_array())
+    for (json& run : c["runs"])
+      if (run.is_object() && run.contains("lanes"))
+        for (auto& [lane, figures] : run["lanes"].items()) drop_times(figures);
+  if (c.contains("summary") && c["summary"].is_array())
+    for (json& s : c["summary"]) drop_times(s);
+  if (c.contains("tables") && c["tables"].is_array()) {
+    json kept = json::array();
+    for (const json& t : c["tables"])
+      if (!t.is_object() || t.value("title", std::string()).rfind("Time per update", 0) != 0)
+        kept.push_back(t);
+    c["tables"] = kept;
+  }
+  return c;
+}
+
 int run_compare(const fs::path& self, const CompareOptions& o, std::ostream& out,
                 std::ostream& progress) {
   using clock = std::chrono::steady_clock;
   const auto start = clock::now();
-  const StudyPlan plan = plan_study(o);
+  const StudyPlan whole = plan_study(o);
   fs::create_directories(o.out_dir);
   check_output_writable(o.out_dir);
+  // a shard or a rerun runs its part of the list; plan.json names the whole list for the merge
+  const std::vector<size_t> picked = selected_study_runs(whole, o);
+  StudyPlan plan = whole;
+  plan.runs.clear();
+  for (size_t i : picked) plan.runs.push_back(whole.runs[i]);
+  if (o.shard.active() || !o.only_ids.empty()) {
+    std::ofstream(o.out_dir / "plan.json")
+        << json_text(compare_plan_json(self, whole, o, picked), 1) << "\n";
+    progress << (o.shard.active() ? "shard " + o.shard.text() : std::string("rerun")) << ": "
+             << plan.runs.size() << " of " << whole.runs.size() << " runs; ";
+  }
   progress << plan.runs.size() << " runs, " << o.jobs << " at once, into " << o.out_dir.string()
            << "\n";
 
   // every run a `conesim run` process with its condition's values
   std::vector<StudyResult> results(plan.runs.size());
-  auto read_metrics = [&](size_t i) {
-    StudyResult& r = results[i];
-    const fs::path dir = o.out_dir / plan.runs[i].dir;
-    if (std::ifstream in(dir / "metrics.json"); in) {
-      try {
-        in >> r.metrics;
-      } catch (const std::exception&) {
-        r.metrics = json();
-      }
-    }
-  };
   // with --reuse, a run that finished before is read, not run (its exit status from its verdict)
   std::vector<ProcessJob> jobs;
   std::vector<size_t> job_run;
@@ -910,8 +1018,8 @@ int run_compare(const fs::path& self, const CompareOptions& o, std::ostream& out
   for (size_t i = 0; i < plan.runs.size(); ++i) {
     const StudyRun& r = plan.runs[i];
     const fs::path dir = o.out_dir / r.dir;
-    if (o.reuse && core::is_file(dir / "metrics.json")) {
-      read_metrics(i);
+    if (o.reuse) {
+      results[i].metrics = read_run_metrics(dir);
       if (results[i].metrics.is_object()) {
         results[i].exit_code = results[i].metrics.value("passed", false) ? 0 : 1;
         ++reused;
@@ -934,7 +1042,7 @@ int run_compare(const fs::path& self, const CompareOptions& o, std::ostream& out
         const size_t i = job_run[j];
         StudyResult& r = results[i];
         r.exit_code = exit_code;
-        read_metrics(i);
+        r.metrics = read_run_metrics(o.out_dir / plan.runs[i].dir);
         if (!r.metrics.is_object())
           r.log_tail = last_log_line(o.out_dir / plan.runs[i].dir / "log.txt");
         ++done;
@@ -952,21 +1060,184 @@ int run_compare(const fs::path& self, const CompareOptions& o, std::ostream& out
     return interrupted_exit_status(signal);
   }
 
-  // the outputs: the figures, then compare.json, compare.md and compare.html
   json c = compare_json(plan, results, o, wall_s);
   c["reused_runs"] = reused;
-  if (o.plot) draw_figures(plan, results, o.out_dir, c["figures"], progress);
-  std::ofstream(o.out_dir / "compare.json") << json_text(c, 2) << "\n";
-  std::ofstream(o.out_dir / "compare.md") << compare_markdown(c);
-  std::ofstream(o.out_dir / "compare.html") << compare_html(c);
-  const size_t failed = c["failed_runs"].size();
-  for (const json& f : c["failed_runs"])
-    out << "FAILED " << f["id"].get<std::string>() << " (" << f["dir"].get<std::string>()
-        << "): " << f["reason"].get<std::string>() << "\n";
-  out << plan.runs.size() - failed << " of " << plan.runs.size() << " runs gave figures ("
-      << fixed(wall_s, 0) << " s); compare.md, compare.json, compare.html in " << o.out_dir.string()
-      << "\n";
-  return failed == 0 ? 0 : 1;
+  return write_compare(c, plan, results, o.out_dir, o.plot, wall_s, out, progress);
+}
+
+bool holds_compare_plan(const std::vector<fs::path>& dirs) {
+  for (const fs::path& dir : dirs)
+    if (core::is_file(dir / "plan.json"))
+      return read_json_file(dir / "plan.json", "a conesim plan.json").value("tool", "") ==
+             "conesim compare plan";
+  return false;
+}
+
+int merge_compare(const MergeOptions& m, std::ostream& out, std::ostream& progress) {
+  using clock = std::chrono::steady_clock;
+  const auto start = clock::now();
+  if (m.dirs.empty()) throw InputError("merge", 0, "no folders to merge");
+  if (m.baseline)
+    throw InputError("--baseline", 0, "only for regress shards: a comparison has no baseline");
+  // each folder: its plan (the whole list) and, when it finished, its compare.json
+  struct Part {
+    fs::path dir;
+    json plan;
+    json done;
+    std::map<std::string, int> exit_codes;
+    std::set<std::string> selected;
+  };
+  std::vector<Part> parts;
+  const Part* whole = nullptr;
+  std::vector<std::string> ids;
+  for (const fs::path& dir : m.dirs) {
+    Part p;
+    p.dir = fs::absolute(dir).lexically_normal();
+    if (core::is_file(dir / "plan.json"))
+      p.plan = read_json_file(dir / "plan.json", "a conesim compare plan.json");
+    if (core::is_file(dir / "compare.json")) {
+      p.done = read_json_file(dir / "compare.json", "the shard's compare.json");
+      for (const json& r : p.done.value("runs", json::array()))
+        p.exit_codes[r.value("id", std::string())] = r.value("exit_code", -1);
+    }
+    if (p.plan.is_object())
+      for (const json& id : p.plan.value("selected", json::array()))
+        if (id.is_string()) p.selected.insert(id.get<std::string>());
+    if (!core::is_folder(dir))
+      progress << dir.string() << ": no such folder (its shard never started?)\n";
+    else if (p.plan.is_null())
+      progress << dir.string() << ": no plan.json (its shard never started?)\n";
+    else if (p.done.is_null())
+      progress << dir.string() << ": no compare.json: this shard did not finish; its runs that "
+               << "wrote metrics.json are taken, the others are missing unless another folder "
+               << "has them\n";
+    parts.push_back(std::move(p));
+  }
+  for (const Part& p : parts) {
+    if (p.plan.is_null()) continue;
+    if (p.plan.value("tool", "") != "conesim compare plan")
+      throw InputError((p.dir / "plan.json").string(), 0,
+                       "not the plan of `conesim compare --shard`: merge regress shards and "
+                       "compare shards apart");
+    const std::vector<std::string> these = plan_run_ids(p.plan, p.dir / "plan.json");
+    if (!whole) {
+      whole = &p;
+      ids = these;
+    } else if (these != ids) {
+      throw InputError((p.dir / "plan.json").string(), 0,
+                       "lists other runs than " + (whole->dir / "plan.json").string() +
+                           ": these folders are shards of different comparisons (the same "
+                           "study, --track, --seeds and --set values make the same list)");
+    }
+  }
+  if (!whole)
+    throw InputError(m.dirs.front().string(), 0,
+                     "no plan.json in any of the folders: merge takes the --out folders of "
+                     "`conesim compare ... --shard I/N`");
+
+  // the study again, from the shards' own arguments
+  const json& wp = whole->plan;
+  CompareOptions o;
+  try {
+    o.study = wp.at("study").get<std::string>();
+    for (const std::string& t : wp.at("tracks").get<std::vector<std::string>>())
+      o.track_files.push_back(t);
+    o.seeds = wp.at("seeds").get<std::vector<unsigned long long>>();
+    o.sets = wp.at("sets").get<std::vector<std::string>>();
+    o.plot = wp.value("plot", true);
+    o.jobs = wp.value("jobs", 1);
+  } catch (const json::exception& e) {
+    throw InputError((whole->dir / "plan.json").string(), 0,
+                     std::string("not a conesim compare plan.json: ") + e.what());
+  }
+  o.out_dir = m.out_dir;
+  o.command_line = m.command_line;
+  const StudyPlan plan = plan_study(o);
+  std::vector<std::string> planned;
+  for (const StudyRun& r : plan.runs) planned.push_back(r.id());
+  if (planned != ids)
+    throw InputError((whole->dir / "plan.json").string(), 0,
+                     "the study plans other runs here than the shards did (another conesim "
+                     "version, or a track moved): merge with the binary the shards ran");
+
+  // each run's result from the last folder that has it
+  std::vector<StudyResult> results(plan.runs.size());
+  json folders = json::object();
+  std::vector<std::string> missing;
+  double wall_s = 0.0;
+  for (const Part& p : parts)
+    if (p.done.is_object()) wall_s = std::max(wall_s, p.done.value("wall_time_s", 0.0));
+  const fs::path out_abs = fs::absolute(m.out_dir).lexically_normal();
+  for (size_t i = 0; i < plan.runs.size(); ++i) {
+    const std::string id = plan.runs[i].id();
+    StudyResult& r = results[i];
+    r.missing = true;
+    for (auto p = parts.rbegin(); p != parts.rend() && r.missing; ++p) {
+      const fs::path dir = p->dir / plan.runs[i].dir;
+      if (const auto it = p->exit_codes.find(id); it != p->exit_codes.end()) {
+        r.exit_code = it->second;
+        r.metrics = read_run_metrics(dir);
+        if (!r.metrics.is_object()) r.log_tail = last_log_line(dir / "log.txt");
+        r.missing = false;
+      } else if (p->done.is_null() && p->selected.count(id)) {
+        // a shard that did not finish: its finished runs count, as --reuse reads them
+        r.metrics = read_run_metrics(dir);
+        if (!r.metrics.is_object()) continue;
+        r.exit_code = r.metrics.value("passed", false) ? 0 : 1;
+        r.missing = false;
+      }
+      if (!r.missing) folders[id] = dir.lexically_relative(out_abs).generic_string();
+    }
+    if (r.missing) missing.push_back(id);
+  }
+
+  fs::create_directories(m.out_dir);
+  check_output_writable(m.out_dir);
+  progress << "merged " << parts.size() << " folders: " << plan.runs.size() - missing.size()
+           << " of " << plan.runs.size() << " runs\n";
+  json c = compare_json(plan, results, o, wall_s);
+  c["reused_runs"] = 0;
+  const std::string rerun = missing.empty() ? "" : rerun_command(wp, "compare", m.out_dir);
+  json dirs = json::array();
+  for (const Part& p : parts) dirs.push_back(p.dir.string());
+  c["shards"] = {{"count", wp["shard"].is_object() ? wp["shard"].value("count", 0) : 0},
+                 {"folders", dirs},
+                 {"run_folders", folders},
+                 {"missing_runs", missing},
+                 {"rerun", rerun.empty() ? json(nullptr) : json(rerun)},
+                 {"merge_time_s", std::chrono::duration<double>(clock::now() - start).count()}};
+  int status = write_compare(c, plan, results, m.out_dir, o.plot, wall_s, out, progress);
+  for (const std::string& id : missing) out << "missing (no result): " << id << "\n";
+  if (!missing.empty())
+    out << missing.size() << " runs missing; run only them and merge again with:\n  " << rerun
+        << "\n";
+  if (m.expect) {
+    const json expected = read_json_file(*m.expect, "a conesim compare.json");
+    const std::vector<std::string> diff =
+        json_differences(compare_without_timing(expected), compare_without_timing(c));
+    if (diff.empty()) {
+      out << "same as " << m.expect->string() << " apart from timing\n";
+    } else {
+      out << "differs from " << m.expect->string() << " (apart from timing):\n";
+      for (const std::string& d : diff) out << "  " << d << "\n";
+      status = 1;
+    }
+  }
+  return status;
+}
+
+int rerun_missing_compare(const fs::path& self, CompareOptions o, const fs::path& merge_dir,
+                          std::ostream& out, std::ostream& progress) {
+  return rerun_then_merge(
+      merge_dir, "compare.json", o.command_line,
+      [&](const std::vector<std::string>& ids, const fs::path& dir) {
+        o.only_ids = ids;
+        o.out_dir = dir;
+        o.shard = {};
+        o.reuse = false;
+        run_compare(self, o, out, progress);
+      },
+      [&](const MergeOptions& m) { return merge_compare(m, out, progress); }, out, progress);
 }
 
 }  // namespace conesim::sim

@@ -307,13 +307,13 @@ Shard parse_shard(const std::string& text, const std::string& option) {
 }
 
 double run_cost(EventType event, double lap_length_m, bool slam_driving, int slam_shadows,
-                bool raw_perception) {
+                bool raw_perception, int trackdrive_laps) {
   double laps = 1.0, usual_m = 300.0;
   switch (event) {
     case EventType::kAcceleration: usual_m = 75.0; break;
     case EventType::kSkidpad: laps = 4.0; usual_m = 60.0; break;
     case EventType::kAutocross: break;
-    case EventType::kTrackdrive: laps = 10.0; break;
+    case EventType::kTrackdrive: laps = trackdrive_laps > 0 ? trackdrive_laps : 10.0; break;
   }
   const double length = lap_length_m > 1.0 ? lap_length_m : usual_m;
   double cost = laps * length / 300.0 * (slam_driving ? 1.5 : 1.0) + 0.5 * slam_shadows;
@@ -337,6 +337,71 @@ std::vector<std::vector<size_t>> shard_runs(const std::vector<double>& costs, in
   }
   for (auto& s : shards) std::sort(s.begin(), s.end());
   return shards;
+}
+
+double scenario_run_cost(const Scenario& s, double lap_length_m) {
+  const bool raw = s.perception == "lidar" || s.perception == "stereo" || s.perception == "fused";
+  return run_cost(s.event, lap_length_m, s.slam != "none", static_cast<int>(s.slam_shadows.size()),
+                  raw, s.driver.trackdrive_laps);
+}
+
+double track_lap_length_m(const fs::path& file) {
+  return centre_line_length(tracks::read_track(file));
+}
+
+std::vector<int> shard_of_runs(const std::vector<double>& costs, int count) {
+  std::vector<int> shard(costs.size(), 0);
+  const auto shards = shard_runs(costs, count);
+  for (size_t k = 0; k < shards.size(); ++k)
+    for (size_t i : shards[k]) shard[i] = static_cast<int>(k) + 1;
+  return shard;
+}
+
+std::vector<size_t> select_runs(const std::vector<std::string>& ids,
+                                const std::vector<double>& costs, const Shard& shard,
+                                const std::vector<std::string>& only_ids,
+                                const std::string& what) {
+  std::vector<size_t> picked;
+  if (!only_ids.empty()) {
+    const std::set<std::string> known(ids.begin(), ids.end());
+    for (const std::string& id : only_ids)
+      if (!known.count(id))
+        throw InputError("--only-missing", 0,
+                         "the run '" + id + "' is not in this run list: give the " + what +
+                             " the shards were given");
+    const std::set<std::string> wanted(only_ids.begin(), only_ids.end());
+    for (size_t i = 0; i < ids.size(); ++i)
+      if (wanted.count(ids[i])) picked.push_back(i);
+    return picked;
+  }
+  if (!shard.active()) {
+    for (size_t i = 0; i < ids.size(); ++i) picked.push_back(i);
+    return picked;
+  }
+  return shard_runs(costs, shard.count)[static_cast<size_t>(shard.index - 1)];
+}
+
+void print_shard_scaling(const std::vector<double>& costs, std::ostream& out) {
+  double total = 0.0;
+  for (double c : costs) total += c;
+  out << "expected cost by shards (the costliest shard sets the wall time; a perfect split is "
+         "total / shards):\n  shards  costliest  total/shards  of perfect  runs in it\n";
+  for (int n : {1, 2, 4, 8, 16, 32}) {
+    double worst = 0.0;
+    size_t runs = 0;
+    for (const auto& s : shard_runs(costs, n)) {
+      double c = 0.0;
+      for (size_t i : s) c += costs[i];
+      if (c > worst || (c == worst && s.size() > runs)) {
+        worst = c;
+        runs = s.size();
+      }
+    }
+    char line[128];
+    std::snprintf(line, sizeof(line), "  %6d  %9.1f  %12.1f  %9.0f%%  %10zu\n", n, worst, total / n,
+                  worst > 0 ? 100.0 * total / n / worst : 100.0, runs);
+    out << line;
+  }
 }
 
 std::vector<unsigned long long> parse_seeds(const std::string& text) {
@@ -417,11 +482,7 @@ RegressionPlan plan_regression(const fs::path& self, const RegressOptions& o) {
     // every scenario loads with the overrides: a typo stops here, not in every run
     const Scenario s = load_scenario(find_scenario(name), o.sets);
     const std::string stem = fs::path(name).stem().string();
-    const bool raw = s.perception == "lidar" || s.perception == "stereo" || s.perception == "fused";
-    auto cost = [&](double length_m) {
-      return run_cost(s.event, length_m, s.slam != "none", static_cast<int>(s.slam_shadows.size()),
-                      raw);
-    };
+    auto cost = [&](double length_m) { return scenario_run_cost(s, length_m); };
     std::vector<unsigned long long> seeds = o.seeds;
     if (seeds.empty()) {
       seeds = {1};
@@ -1015,68 +1076,66 @@ std::vector<RunRow> parse_baseline(const std::string& text, const std::string& n
 }
 
 std::vector<RegressionRun> selected_runs(const RegressionPlan& plan, const RegressOptions& o) {
-  std::vector<RegressionRun> runs;
-  if (!o.only_ids.empty()) {
-    std::map<std::string, const RegressionRun*> by_id;
-    for (const RegressionRun& r : plan.runs) by_id[r.id()] = &r;
-    std::set<std::string> wanted;
-    for (const std::string& id : o.only_ids) {
-      if (!by_id.count(id))
-        throw InputError("--only-missing", 0,
-                         "the run '" + id +
-                             "' is not in this run list: give the scenarios, tracks, seeds and "
-                             "--set values the shards were given");
-      wanted.insert(id);
-    }
-    for (const RegressionRun& r : plan.runs)
-      if (wanted.count(r.id())) runs.push_back(r);
-    return runs;
-  }
-  if (!o.shard.active()) return plan.runs;
+  std::vector<std::string> ids;
   std::vector<double> costs;
-  for (const RegressionRun& r : plan.runs) costs.push_back(r.cost);
-  const std::vector<std::vector<size_t>> shards = shard_runs(costs, o.shard.count);
-  for (size_t i : shards[static_cast<size_t>(o.shard.index - 1)]) runs.push_back(plan.runs[i]);
+  for (const RegressionRun& r : plan.runs) {
+    ids.push_back(r.id());
+    costs.push_back(r.cost);
+  }
+  std::vector<RegressionRun> runs;
+  for (size_t i : select_runs(ids, costs, o.shard, o.only_ids,
+                              "scenarios, tracks, seeds and --set values"))
+    runs.push_back(plan.runs[i]);
   return runs;
+}
+
+json shard_plan_json(const std::string& tool, const fs::path& self,
+                     const std::vector<std::string>& args, const std::vector<std::string>& ids,
+                     const std::vector<std::string>& dirs, const std::vector<double>& costs,
+                     const Shard& shard, const std::vector<size_t>& selected, int jobs) {
+  const std::vector<int> shard_of =
+      shard.active() ? shard_of_runs(costs, shard.count) : std::vector<int>(ids.size(), 0);
+  json runs = json::array();
+  for (size_t i = 0; i < ids.size(); ++i) {
+    json r = {{"id", ids[i]}, {"dir", dirs[i]}, {"cost", costs[i]}};
+    if (shard.active()) r["shard"] = shard_of[i];
+    runs.push_back(r);
+  }
+  json picked = json::array();
+  for (size_t i : selected) picked.push_back(ids[i]);
+  return {{"tool", tool},
+          {"version", CONESIM_VERSION},
+          {"binary", self.string()},
+          {"args", args},
+          {"shard", shard.active() ? json{{"index", shard.index}, {"count", shard.count}}
+                                   : json(nullptr)},
+          {"jobs", jobs},
+          {"selected", picked},
+          {"runs", runs}};
 }
 
 namespace {
 
 // plan.json: the whole run list (each run's shard), how this call was made, what it runs
 json plan_json(const fs::path& self, const RegressionPlan& plan, const RegressOptions& o) {
-  std::vector<size_t> shard_of(plan.runs.size(), 0);
-  if (o.shard.active()) {
-    std::vector<double> costs;
-    for (const RegressionRun& r : plan.runs) costs.push_back(r.cost);
-    const auto shards = shard_runs(costs, o.shard.count);
-    for (size_t k = 0; k < shards.size(); ++k)
-      for (size_t i : shards[k]) shard_of[i] = k + 1;
+  std::vector<std::string> ids, dirs;
+  std::vector<double> costs;
+  for (const RegressionRun& r : plan.runs) {
+    ids.push_back(r.id());
+    dirs.push_back(r.dir.generic_string());
+    costs.push_back(r.cost);
   }
-  json runs = json::array();
-  for (size_t i = 0; i < plan.runs.size(); ++i) {
-    json r = {{"id", plan.runs[i].id()},
-              {"dir", plan.runs[i].dir.generic_string()},
-              {"cost", plan.runs[i].cost}};
-    if (o.shard.active()) r["shard"] = shard_of[i];
-    runs.push_back(r);
-  }
-  json selected = json::array();
-  for (const RegressionRun& r : selected_runs(plan, o)) selected.push_back(r.id());
+  const std::vector<size_t> selected =
+      select_runs(ids, costs, o.shard, o.only_ids, "scenarios, tracks, seeds and --set values");
+  json p = shard_plan_json("conesim regress plan", self, o.args, ids, dirs, costs, o.shard,
+                           selected, o.jobs);
   json skipped = json::array();
   for (const SkippedTrack& s : plan.skipped)
     skipped.push_back({{"track", s.track}, {"reason", s.reason}});
-  return {{"tool", "conesim regress plan"},
-          {"version", CONESIM_VERSION},
-          {"binary", self.string()},
-          {"args", o.args},
-          {"shard", o.shard.active() ? json{{"index", o.shard.index}, {"count", o.shard.count}}
-                                     : json(nullptr)},
-          {"jobs", o.jobs},
-          {"baseline", o.baseline ? json(fs::absolute(*o.baseline).string()) : json(nullptr)},
-          {"event_mismatches_left_out", plan.event_mismatches},
-          {"skipped_tracks", skipped},
-          {"selected", selected},
-          {"runs", runs}};
+  p["baseline"] = o.baseline ? json(fs::absolute(*o.baseline).string()) : json(nullptr);
+  p["event_mismatches_left_out"] = plan.event_mismatches;
+  p["skipped_tracks"] = skipped;
+  return p;
 }
 
 }  // namespace
@@ -1267,7 +1326,17 @@ std::string read_whole(const fs::path& file, const std::string& what) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
-json read_json(const fs::path& file, const std::string& what) {
+
+// the regress arguments of a shard without what makes it that shard (--shard, --out, --resume,
+// --only-missing): the same run list, whole
+std::vector<std::string> study_args(const std::vector<std::string>& args) {
+  return without_options(args, {"--shard", "--out", "--only-missing", "--jobs", "-j"},
+                         {"--resume", "--reuse", "--list"});
+}
+
+}  // namespace
+
+json read_json_file(const fs::path& file, const std::string& what) {
   try {
     return json::parse(read_whole(file, what));
   } catch (const json::exception& e) {
@@ -1275,13 +1344,29 @@ json read_json(const fs::path& file, const std::string& what) {
   }
 }
 
-// the regress arguments of a shard without what makes it that shard (--shard, --out, --resume,
-// --only-missing): the same run list, whole
-std::vector<std::string> study_args(const std::vector<std::string>& args) {
-  return without_options(args, {"--shard", "--out", "--only-missing", "--jobs", "-j"}, {"--resume"});
+std::vector<std::string> plan_run_ids(const json& plan, const fs::path& file) {
+  std::vector<std::string> ids;
+  try {
+    for (const json& r : plan.at("runs")) ids.push_back(r.at("id").get<std::string>());
+  } catch (const json::exception& e) {
+    throw InputError(file.string(), 0, std::string("not a conesim plan.json: ") + e.what());
+  }
+  return ids;
 }
 
-}  // namespace
+std::string rerun_command(const json& plan, const std::string& command, const fs::path& merge_dir) {
+  std::vector<std::string> words = {plan.value("binary", std::string("conesim")), command};
+  for (const std::string& a : study_args(plan.value("args", std::vector<std::string>())))
+    words.push_back(a);
+  words.push_back("--only-missing");
+  words.push_back(fs::absolute(merge_dir).lexically_normal().string());
+  std::string line;
+  for (const std::string& w : words) {
+    if (!line.empty()) line += ' ';
+    line += shell_word(w);
+  }
+  return line;
+}
 
 std::string shell_word(const std::string& w) {
   if (!w.empty() && w.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
@@ -1322,8 +1407,12 @@ json summary_without_timing(json j) {
 }
 
 std::vector<std::string> summary_differences(const json& a, const json& b, size_t limit) {
+  return json_differences(summary_without_timing(a), summary_without_timing(b), limit);
+}
+
+std::vector<std::string> json_differences(const json& a, const json& b, size_t limit) {
   std::vector<std::string> found;
-  const json patch = json::diff(summary_without_timing(a), summary_without_timing(b));
+  const json patch = json::diff(a, b);
   for (const json& op : patch) {
     if (found.size() >= limit) {
       found.push_back("... (" + std::to_string(patch.size() - limit) + " more)");
@@ -1334,7 +1423,7 @@ std::vector<std::string> summary_differences(const json& a, const json& b, size_
     std::string was = "(none)";
     if (verb != "add") {
       try {
-        was = summary_without_timing(a).at(json::json_pointer(path)).dump();
+        was = a.at(json::json_pointer(path)).dump();
       } catch (const json::exception&) {
       }
     }
@@ -1362,7 +1451,7 @@ int merge_regression(const MergeOptions& m, std::ostream& out, std::ostream& pro
     Part p;
     p.dir = fs::absolute(dir).lexically_normal();
     if (core::is_file(dir / "plan.json"))
-      p.plan = read_json(dir / "plan.json", "a conesim regress plan.json");
+      p.plan = read_json_file(dir / "plan.json", "a conesim regress plan.json");
     if (core::is_file(dir / "summary.json")) {
       const std::string text = read_whole(dir / "summary.json", "the shard's summary.json");
       p.rows = parse_baseline(text, (dir / "summary.json").string());
@@ -1389,13 +1478,7 @@ int merge_regression(const MergeOptions& m, std::ostream& out, std::ostream& pro
   // the whole list, the same in every plan
   for (const Part& p : parts) {
     if (p.plan.is_null()) continue;
-    std::vector<std::string> these;
-    try {
-      for (const json& r : p.plan.at("runs")) these.push_back(r.at("id").get<std::string>());
-    } catch (const json::exception& e) {
-      throw InputError((p.dir / "plan.json").string(), 0,
-                       std::string("not a conesim regress plan.json: ") + e.what());
-    }
+    const std::vector<std::string> these = plan_run_ids(p.plan, p.dir / "plan.json");
     if (!whole) {
       whole = &p.plan;
       ids = these;
@@ -1452,18 +1535,13 @@ int merge_regression(const MergeOptions& m, std::ostream& out, std::ostream& pro
   if (o.baseline)
     baseline = parse_baseline(read_whole(*o.baseline, "the baseline summary"), o.baseline->string());
   json expected;
-  if (m.expect) expected = read_json(*m.expect, "a conesim regress summary.json");
+  if (m.expect) expected = read_json_file(*m.expect, "a conesim regress summary.json");
 
   // the command that runs only the missing runs and merges again
   json dirs = json::array();
   for (const Part& p : parts) dirs.push_back(p.dir.string());
   std::string rerun;
-  if (!missing.empty()) {
-    rerun = shell_word(whole->value("binary", std::string("conesim"))) + " regress";
-    for (const std::string& a : study_args(whole->value("args", std::vector<std::string>())))
-      rerun += " " + shell_word(a);
-    rerun += " --only-missing " + shell_word(fs::absolute(m.out_dir).lexically_normal().string());
-  }
+  if (!missing.empty()) rerun = rerun_command(*whole, "regress", m.out_dir);
   MergeParts merge;
   std::set<std::string> commits;
   for (const Part& p : parts)
@@ -1488,7 +1566,7 @@ int merge_regression(const MergeOptions& m, std::ostream& out, std::ostream& pro
     out << missing.size() << " runs missing; run only them and merge again with:\n  " << rerun
         << "\n";
   if (m.expect) {
-    const json merged = read_json(m.out_dir / "summary.json", "the merged summary.json");
+    const json merged = read_json_file(m.out_dir / "summary.json", "the merged summary.json");
     const std::vector<std::string> diff = summary_differences(expected, merged);
     if (diff.empty()) {
       out << "same as " << m.expect->string() << " apart from timing\n";
@@ -1501,37 +1579,51 @@ int merge_regression(const MergeOptions& m, std::ostream& out, std::ostream& pro
   return status;
 }
 
-int rerun_missing(const fs::path& self, RegressOptions o, const fs::path& merge_dir,
-                  std::ostream& out, std::ostream& progress) {
-  const json merged = read_json(merge_dir / "summary.json", "a merged conesim summary.json");
+int rerun_then_merge(const fs::path& merge_dir, const std::string& file_name,
+                     const std::string& command_line,
+                     const std::function<void(const std::vector<std::string>&, const fs::path&)>& run,
+                     const std::function<int(const MergeOptions&)>& merge, std::ostream& out,
+                     std::ostream& progress) {
+  const fs::path file = merge_dir / file_name;
+  const json merged = read_json_file(file, "a merged conesim " + file_name);
   if (!merged.contains("shards") || !merged["shards"].is_object())
     throw InputError("--only-missing", 0,
-                     (merge_dir / "summary.json").string() +
-                         " is not the summary of `conesim merge` (it has no shards section)");
+                     file.string() + " is not the " + file_name +
+                         " of `conesim merge` (it has no shards section)");
   const json& shards = merged["shards"];
-  o.only_ids = shards.value("missing_runs", std::vector<std::string>());
-  MergeOptions m;
-  for (const std::string& d : shards.value("folders", std::vector<std::string>()))
-    m.dirs.push_back(d);
-  if (o.only_ids.empty()) {
+  const auto ids = shards.value("missing_runs", std::vector<std::string>());
+  if (ids.empty()) {
     out << "no run is missing in " << merge_dir.string() << "\n";
     return 0;
   }
   // the rerun beside the merge, in a folder of its own
-  for (int k = 1;; ++k) {
-    o.out_dir = merge_dir / ("rerun-" + std::to_string(k));
-    if (!core::path_exists(o.out_dir)) break;
-  }
-  o.shard = {};
-  o.resume = false;
-  progress << "running the " << o.only_ids.size() << " missing runs into " << o.out_dir.string()
-           << "\n";
-  run_regression(self, o, out, progress);
+  fs::path rerun_dir;
+  for (int k = 1; rerun_dir.empty() || core::path_exists(rerun_dir); ++k)
+    rerun_dir = merge_dir / ("rerun-" + std::to_string(k));
+  progress << "running the " << ids.size() << " missing runs into " << rerun_dir.string() << "\n";
+  run(ids, rerun_dir);
   if (const int signal = interrupt_signal()) return interrupted_exit_status(signal);
-  m.dirs.push_back(fs::absolute(o.out_dir));
+  MergeOptions m;
+  for (const std::string& d : shards.value("folders", std::vector<std::string>()))
+    m.dirs.push_back(d);
+  m.dirs.push_back(fs::absolute(rerun_dir));
   m.out_dir = merge_dir;
-  m.command_line = o.command_line;
-  return merge_regression(m, out, progress);
+  m.command_line = command_line;
+  return merge(m);
+}
+
+int rerun_missing(const fs::path& self, RegressOptions o, const fs::path& merge_dir,
+                  std::ostream& out, std::ostream& progress) {
+  return rerun_then_merge(
+      merge_dir, "summary.json", o.command_line,
+      [&](const std::vector<std::string>& ids, const fs::path& dir) {
+        o.only_ids = ids;
+        o.out_dir = dir;
+        o.shard = {};
+        o.resume = false;
+        run_regression(self, o, out, progress);
+      },
+      [&](const MergeOptions& m) { return merge_regression(m, out, progress); }, out, progress);
 }
 
 fs::path make_run_dir(const fs::path& parent, const std::string& name) {

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <iosfwd>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -106,8 +107,19 @@ struct RegressionPlan {
 /// 75 m, skidpad 60 m, circuits 300 m), x 1.5 with a SLAM back-end driving, + 0.5 per shadow
 /// back-end, x 3 for raw-data perception (lidar, stereo, fused). Rounded to 1/1000 so that every
 /// machine balances the same list the same way.
+/// `laps`: the laps a trackdrive drives when not the usual 10 (driver.trackdrive_laps; 0: 10).
 double run_cost(core::EventType event, double lap_length_m, bool slam_driving, int slam_shadows,
-                bool raw_perception);
+                bool raw_perception, int laps = 0);
+
+struct Scenario;
+
+/// run_cost of a run of scenario `s` (its event, SLAM back-ends, perception and trackdrive laps)
+/// on a lap of `lap_length_m` (0: the event's usual length).
+double scenario_run_cost(const Scenario& s, double lap_length_m);
+
+/// The length of a track file's centre line (a closed circuit's lap; 0 without one), for
+/// run_cost. Throws what tracks::read_track throws for an unreadable file.
+double track_lap_length_m(const std::filesystem::path& file);
 
 /// Slices `costs` (one per run, in run order) into `count` shards by greedy longest processing
 /// time: runs from the most to the least expensive (ties by run order) each go to the shard
@@ -115,6 +127,47 @@ double run_cost(core::EventType event, double lap_length_m, bool slam_driving, i
 /// run order. Every run is in exactly one shard; a shard's total exceeds another's by at most
 /// the most expensive run.
 std::vector<std::vector<size_t>> shard_runs(const std::vector<double>& costs, int count);
+
+/// Each run's shard (1-based) when `costs` are dealt into `count` shards by shard_runs.
+std::vector<int> shard_of_runs(const std::vector<double>& costs, int count);
+
+/// The indexes (into the run list) of the runs a call runs, in run order: those whose ids are
+/// in `only_ids` (--only-missing) when it is not empty, else shard `shard`'s slice of the list
+/// (shard_runs over `costs`), else all. `ids` and `costs` are the whole list's. Throws
+/// core::InputError naming --only-missing for an id not in the list; `what` says which
+/// arguments make the list (e.g. "scenarios, tracks, seeds and --set values").
+std::vector<size_t> select_runs(const std::vector<std::string>& ids,
+                                const std::vector<double>& costs, const Shard& shard,
+                                const std::vector<std::string>& only_ids, const std::string& what);
+
+/// How the run list's expected cost spreads over 1, 2, 4 ... 32 shards (the --list of a whole
+/// list): per count, the costliest shard against total / count, the share of a perfect split,
+/// and the runs in the costliest shard.
+void print_shard_scaling(const std::vector<double>& costs, std::ostream& out);
+
+/// plan.json of a shard or a rerun (`tool`: "conesim regress plan" or "conesim compare plan"):
+/// the whole list (each run's id, folder, cost and, sharded, its shard), the binary and the
+/// arguments as given, the shard, --jobs and the ids this call runs. The caller adds its own.
+nlohmann::json shard_plan_json(const std::string& tool, const std::filesystem::path& self,
+                               const std::vector<std::string>& args,
+                               const std::vector<std::string>& ids,
+                               const std::vector<std::string>& dirs,
+                               const std::vector<double>& costs, const Shard& shard,
+                               const std::vector<size_t>& selected, int jobs);
+
+/// The run ids of a plan.json (`file` names it in errors); throws core::InputError when it is
+/// not one.
+std::vector<std::string> plan_run_ids(const nlohmann::json& plan,
+                                      const std::filesystem::path& file);
+
+/// The command that runs only a merge's missing runs and merges again:
+/// `BINARY COMMAND ARGS --only-missing MERGE_DIR`, from a shard's plan.json (the arguments
+/// without --shard, --out, --jobs and --resume).
+std::string rerun_command(const nlohmann::json& plan, const std::string& command,
+                          const std::filesystem::path& merge_dir);
+
+/// A JSON file parsed; core::InputError naming the file and `what` it should be otherwise.
+nlohmann::json read_json_file(const std::filesystem::path& file, const std::string& what);
 
 /// The runs of the plan this call runs, in run order: those of options.only_ids, else the
 /// slice of options.shard, else all. Throws core::InputError for an id not in the plan.
@@ -299,6 +352,23 @@ nlohmann::json summary_without_timing(nlohmann::json summary);
 /// `limit`); empty when they are the same.
 std::vector<std::string> summary_differences(const nlohmann::json& a, const nlohmann::json& b,
                                              size_t limit = 20);
+
+/// The differences between two JSON documents, one "path: a -> b" a line (at most `limit`);
+/// empty when they are the same.
+std::vector<std::string> json_differences(const nlohmann::json& a, const nlohmann::json& b,
+                                          size_t limit = 20);
+
+/// What --only-missing does for regress and compare alike: reads the `shards` of MERGE_DIR's
+/// merged `file_name` (summary.json or compare.json; core::InputError naming --only-missing when
+/// it has none), and when runs are missing calls `run(ids, MERGE_DIR/rerun-K)` and then `merge`
+/// with the merge's folders and the rerun's into MERGE_DIR. Returns merge's status (0 when
+/// nothing is missing; the signal's status when interrupted).
+int rerun_then_merge(const std::filesystem::path& merge_dir, const std::string& file_name,
+                     const std::string& command_line,
+                     const std::function<void(const std::vector<std::string>& ids,
+                                              const std::filesystem::path& rerun_dir)>& run,
+                     const std::function<int(const MergeOptions&)>& merge, std::ostream& out,
+                     std::ostream& progress);
 
 /// `conesim regress ... --only-missing MERGE_DIR`: runs the runs that MERGE_DIR's summary.json
 /// lists as missing (options as the shards had them, out_dir ignored) into MERGE_DIR/rerun-K,

@@ -53,11 +53,11 @@ std::string trimmed(std::string s) {
 }
 
 // the run list's arguments, whole: without what the array sets per task or the submit uses
-std::vector<std::string> task_args(const RegressOptions& o) {
-  return without_options(o.args,
+std::vector<std::string> task_args(const ShardedCall& c) {
+  return without_options(c.args,
                          {"--shard", "--out", "--only-missing", "--shards", "--partition", "--time",
                           "--cpus-per-task", "--jobs", "-j"},
-                         {"--slurm", "--resume", "--list"});
+                         {"--slurm", "--resume", "--reuse", "--list"});
 }
 
 // the #SBATCH lines both jobs share
@@ -69,19 +69,26 @@ std::string sbatch_header(const std::string& name, const fs::path& log, const Sl
   return h;
 }
 
-fs::path absolute_out(const RegressOptions& o) { return fs::absolute(o.out_dir).lexically_normal(); }
+void require_sbatch() {
+  if (!on_path("sbatch"))
+    throw InputError("--slurm", 0,
+                     "sbatch not found: submitting needs Slurm's client tools on this machine "
+                     "(Debian: slurm-client), on a login node of the cluster");
+}
+
+fs::path absolute_out(const ShardedCall& c) { return fs::absolute(c.out_dir).lexically_normal(); }
 
 }  // namespace
 
-std::string slurm_shards_script(const fs::path& self, const RegressOptions& o,
+std::string slurm_shards_script(const fs::path& self, const ShardedCall& o,
                                 const SlurmOptions& s) {
   const fs::path out = absolute_out(o);
   std::string h = sbatch_header("conesim-shards", out / "slurm" / "shard-%a.log", s);
   h += "#SBATCH --array=0-" + std::to_string(s.shards - 1) + "\n";
   if (s.cpus_per_task > 0) h += "#SBATCH --cpus-per-task=" + std::to_string(s.cpus_per_task) + "\n";
-  h += "# written by `conesim regress --slurm`: task K of the array runs shard K+1 of " +
+  h += "# written by `conesim " + o.command + " --slurm`: task K of the array runs shard K+1 of " +
        std::to_string(s.shards) + "\nset -eu\nshard=$((SLURM_ARRAY_TASK_ID + 1))\n";
-  std::string cmd = "exec " + shell_word(self.string()) + " regress";
+  std::string cmd = "exec " + shell_word(self.string()) + " " + o.command;
   for (const std::string& a : task_args(o)) cmd.append(" ").append(shell_word(a));
   cmd.append(" --jobs ")
       .append(s.jobs > 0 ? std::to_string(s.jobs) : std::string("\"${SLURM_CPUS_PER_TASK:-1}\""))
@@ -93,12 +100,13 @@ std::string slurm_shards_script(const fs::path& self, const RegressOptions& o,
   return h + cmd + "\n";
 }
 
-std::string slurm_merge_script(const fs::path& self, const RegressOptions& o,
+std::string slurm_merge_script(const fs::path& self, const ShardedCall& o,
                                const SlurmOptions& s) {
   const fs::path out = absolute_out(o);
   std::string h = sbatch_header("conesim-merge", out / "slurm" / "merge.log", s);
-  h += "#SBATCH --cpus-per-task=1\n# written by `conesim regress --slurm`: the shards' summaries "
-       "into one, once the array has ended (whatever became of its tasks)\n";
+  h += "#SBATCH --cpus-per-task=1\n# written by `conesim " + o.command +
+       " --slurm`: the shards' summaries into one, once the array has ended (whatever became "
+       "of its tasks)\n";
   std::string cmd = "exec " + shell_word(self.string()) + " merge";
   for (int k = 1; k <= s.shards; ++k)
     cmd.append(" ").append(shell_word((out / ("shard-" + std::to_string(k))).string()));
@@ -108,17 +116,22 @@ std::string slurm_merge_script(const fs::path& self, const RegressOptions& o,
 
 int submit_regression_to_slurm(const fs::path& self, const RegressOptions& o,
                                const SlurmOptions& s, std::ostream& out, std::ostream& err) {
-  if (!on_path("sbatch"))
-    throw InputError("--slurm", 0,
-                     "sbatch not found: submitting needs Slurm's client tools on this machine "
-                     "(Debian: slurm-client), on a login node of the cluster");
+  require_sbatch();
   // bad input stops here, before anything is queued
   fs::create_directories(o.out_dir / "slurm");
   check_output_writable(o.out_dir);
   const RegressionPlan plan = plan_regression(self, o);
-  if (static_cast<size_t>(s.shards) > plan.runs.size())
-    err << "note: " << s.shards << " shards for " << plan.runs.size()
-        << " runs: some shards have no run\n";
+  return submit_shards_to_slurm(self, {"regress", o.args, o.out_dir, plan.runs.size()}, s, out,
+                                err);
+}
+
+int submit_shards_to_slurm(const fs::path& self, const ShardedCall& o, const SlurmOptions& s,
+                           std::ostream& out, std::ostream& err) {
+  require_sbatch();
+  fs::create_directories(o.out_dir / "slurm");
+  check_output_writable(o.out_dir);
+  if (static_cast<size_t>(s.shards) > o.runs)
+    err << "note: " << s.shards << " shards for " << o.runs << " runs: some shards have no run\n";
   const fs::path dir = absolute_out(o) / "slurm";
   const fs::path shards_file = dir / "shards.sh";
   const fs::path merge_file = dir / "merge.sh";
@@ -147,15 +160,18 @@ int submit_regression_to_slurm(const fs::path& self, const RegressOptions& o,
   std::ofstream(dir / "jobs.json") << json_text(json{{"shards_job", array},
                                                      {"merge_job", merge},
                                                      {"shards", s.shards},
-                                                     {"runs", plan.runs.size()},
+                                                     {"command", o.command},
+                                                     {"runs", o.runs},
                                                      {"out", absolute_out(o).string()}},
                                                 1)
                                    << "\n";
-  out << "submitted " << plan.runs.size() << " runs in " << s.shards
+  out << "submitted " << o.runs << " runs in " << s.shards
       << " shards as Slurm job array " << array << ", and their merge as job " << merge
       << " (starts when the array has ended)\n"
       << "  progress:       conesim slurm status " << absolute_out(o).string() << "\n"
-      << "  merged summary: " << (absolute_out(o) / "summary.html").string() << "\n"
+      << "  merged summary: "
+      << (absolute_out(o) / (o.command == "compare" ? "compare.html" : "summary.html")).string()
+      << "\n"
       << "shards job " << array << "\nmerge job " << merge << "\n";
   return 0;
 }

@@ -25,19 +25,37 @@ struct SlurmOptions {
   int jobs = 0;
 };
 
+/// What the job array runs: `conesim COMMAND ARGS --shard K/N --out OUT/shard-K` per task, and
+/// `conesim merge OUT/shard-1 ... --out OUT` after it.
+struct ShardedCall {
+  /// "regress" or "compare".
+  std::string command;
+  /// The arguments after the command, as given (--slurm and its options are left out).
+  std::vector<std::string> args;
+  std::filesystem::path out_dir;
+  /// The runs of the whole list (the note on shards without runs, jobs.json).
+  size_t runs = 0;
+};
+
 /// The array's batch script: task K (SLURM_ARRAY_TASK_ID, 0-based) runs
-/// `conesim regress ARGS --shard K+1/N --out OUT/shard-(K+1)`, its log in OUT/slurm.
-std::string slurm_shards_script(const std::filesystem::path& self, const RegressOptions& options,
+/// `conesim COMMAND ARGS --shard K+1/N --out OUT/shard-(K+1)`, its log in OUT/slurm.
+std::string slurm_shards_script(const std::filesystem::path& self, const ShardedCall& call,
                                 const SlurmOptions& slurm);
 
 /// The merge job's batch script: `conesim merge OUT/shard-1 ... OUT/shard-N --out OUT`.
-std::string slurm_merge_script(const std::filesystem::path& self, const RegressOptions& options,
+std::string slurm_merge_script(const std::filesystem::path& self, const ShardedCall& call,
                                const SlurmOptions& slurm);
 
-/// Plans the regression here (bad input stops before anything is submitted), writes both
-/// scripts into OUT/slurm, submits the array with `sbatch --parsable` and the merge with
-/// `--dependency=afterany:ARRAY`, writes OUT/slurm/jobs.json and prints the job ids and the
-/// commands that follow them. Returns 0, or 1 when sbatch failed (its words printed).
+/// Writes both scripts into OUT/slurm, submits the array with `sbatch --parsable` and the merge
+/// with `--dependency=afterany:ARRAY`, writes OUT/slurm/jobs.json and prints the job ids and the
+/// commands that follow them. The caller has planned the runs (bad input stops before anything
+/// is submitted). Returns 0, or 1 when sbatch failed (its words printed). Throws
+/// core::InputError when sbatch is not on PATH.
+int submit_shards_to_slurm(const std::filesystem::path& self, const ShardedCall& call,
+                           const SlurmOptions& slurm, std::ostream& out, std::ostream& err);
+
+/// Plans the regression here (bad input stops before anything is submitted), then
+/// submit_shards_to_slurm.
 int submit_regression_to_slurm(const std::filesystem::path& self, const RegressOptions& options,
                                const SlurmOptions& slurm, std::ostream& out, std::ostream& err);
 

@@ -423,6 +423,51 @@ void add_view_command(CLI::App& app) {
   });
 }
 
+// --shard, --only-missing, --slurm and the sbatch options of regress and compare
+struct ShardingFlags {
+  std::string shard;
+  fs::path only_missing;
+  conesim::sim::SlurmOptions slurm;
+  bool use_slurm = false;
+};
+
+void add_sharding_options(CLI::App* cmd, ShardingFlags& f) {
+  cmd->add_option("--shard", f.shard,
+                  "I/N: run only shard I of N (slices balanced by expected cost, the same on "
+                  "every machine); `conesim merge` joins the shards' --out folders");
+  cmd->add_option("--only-missing", f.only_missing,
+                  "MERGE_DIR: run only the runs the merge in MERGE_DIR lists as missing (with "
+                  "the shards' arguments), then merge again into MERGE_DIR");
+  cmd->add_flag("--slurm", f.use_slurm,
+                "Submit to Slurm instead of running here: a job array of --shards tasks into "
+                "OUT/shard-K and a merge job into OUT, with sbatch; prints the job ids");
+  cmd->add_option("--shards", f.slurm.shards, "With --slurm: the number of shards (default 4)")
+      ->check(CLI::Range(1, 10000));
+  cmd->add_option("--partition", f.slurm.partition, "With --slurm: sbatch --partition");
+  cmd->add_option("--time", f.slurm.time,
+                  "With --slurm: sbatch --time of each task (e.g. 1:00:00)");
+  cmd->add_option("--cpus-per-task", f.slurm.cpus_per_task,
+                  "With --slurm: sbatch --cpus-per-task; each task runs that many runs at once")
+      ->check(CLI::Range(1, 1024));
+}
+
+// the sbatch options only with --slurm; --slurm and --only-missing not with what makes a call
+// one part of the list (--shard, `resume`: --resume or --reuse), --only-missing not with --out
+void check_sharding_options(CLI::App* cmd, const ShardingFlags& f, bool sharded, bool resumed,
+                            const std::string& resume, bool out_given) {
+  using conesim::core::InputError;
+  for (const char* opt : {"--shards", "--partition", "--time", "--cpus-per-task"})
+    if (cmd->count(opt) && !f.use_slurm) throw InputError(opt, 0, "only with --slurm");
+  if (f.use_slurm && (sharded || !f.only_missing.empty() || resumed))
+    throw InputError("--slurm", 0,
+                     "not with --shard, --only-missing or " + resume +
+                         ": --slurm runs every shard itself");
+  if (!f.only_missing.empty() && (sharded || resumed || out_given))
+    throw InputError("--only-missing", 0,
+                     "not with --shard, " + resume + " or --out: the runs go into "
+                     "MERGE_DIR/rerun-K");
+}
+
 // `conesim regress ...`
 void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
   auto* cmd = app.add_subcommand(
@@ -455,45 +500,20 @@ void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
                   "A stored summary.json: exit 1 on a regression beyond the noise");
   cmd->add_flag("--no-plot", *no_plot, "Runs draw no pictures (faster; report.html has none)");
   auto list = std::make_shared<bool>(false);
-  cmd->add_flag("--list", *list, "Print the runs (id and folder) and stop: nothing runs");
+  cmd->add_flag("--list", *list,
+                "Print the runs (id, folder, expected cost) and stop: nothing runs; without "
+                "--shard also how the cost spreads over 1 to 32 shards");
   cmd->add_flag("--resume", o->resume,
                 "With --out of an earlier, interrupted call with the same runs: the runs that "
                 "wrote their metrics.json are read, the others run");
-  auto shard = std::make_shared<std::string>();
-  cmd->add_option("--shard", *shard,
-                  "I/N: run only shard I of N (slices balanced by expected cost, the same on "
-                  "every machine); `conesim merge` joins the shards' --out folders");
-  auto only_missing = std::make_shared<fs::path>();
-  cmd->add_option("--only-missing", *only_missing,
-                  "MERGE_DIR: run only the runs the merge in MERGE_DIR lists as missing (with "
-                  "the shards' arguments), then merge again into MERGE_DIR");
-  auto slurm = std::make_shared<conesim::sim::SlurmOptions>();
-  auto use_slurm = std::make_shared<bool>(false);
-  cmd->add_flag("--slurm", *use_slurm,
-                "Submit to Slurm instead of running here: a job array of --shards tasks into "
-                "OUT/shard-K and a merge job into OUT, with sbatch; prints the job ids");
-  cmd->add_option("--shards", slurm->shards, "With --slurm: the number of shards (default 4)")
-      ->check(CLI::Range(1, 10000));
-  cmd->add_option("--partition", slurm->partition, "With --slurm: sbatch --partition");
-  cmd->add_option("--time", slurm->time, "With --slurm: sbatch --time of each task (e.g. 1:00:00)");
-  cmd->add_option("--cpus-per-task", slurm->cpus_per_task,
-                  "With --slurm: sbatch --cpus-per-task; each task runs that many runs at once")
-      ->check(CLI::Range(1, 1024));
+  auto sharding = std::make_shared<ShardingFlags>();
+  add_sharding_options(cmd, *sharding);
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;
     sim::install_interrupt_handlers();
-    if (!shard->empty()) o->shard = sim::parse_shard(*shard);
-    for (const char* opt : {"--shards", "--partition", "--time", "--cpus-per-task"})
-      if (cmd->count(opt) && !*use_slurm)
-        throw conesim::core::InputError(opt, 0, "only with --slurm");
-    if (*use_slurm && (o->shard.active() || !only_missing->empty() || o->resume))
-      throw conesim::core::InputError("--slurm", 0,
-                                      "not with --shard, --only-missing or --resume: --slurm "
-                                      "runs every shard itself");
-    if (!only_missing->empty() && (o->shard.active() || o->resume || !o->out_dir.empty()))
-      throw conesim::core::InputError("--only-missing", 0,
-                                      "not with --shard, --resume or --out: the runs go into "
-                                      "MERGE_DIR/rerun-K");
+    if (!sharding->shard.empty()) o->shard = sim::parse_shard(sharding->shard);
+    check_sharding_options(cmd, *sharding, o->shard.active(), o->resume, "--resume",
+                           !o->out_dir.empty());
     {
       int k = 1;
       while (k < argc && std::string(argv[k]) != "regress") ++k;
@@ -520,8 +540,8 @@ void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
     std::error_code ec;
     fs::path self = fs::read_symlink("/proc/self/exe", ec);
     if (ec) self = fs::absolute(argv[0]);
-    if (!only_missing->empty()) {
-      status = sim::rerun_missing(self, *o, *only_missing, std::cout, std::cerr);
+    if (!sharding->only_missing.empty()) {
+      status = sim::rerun_missing(self, *o, sharding->only_missing, std::cout, std::cerr);
       return;
     }
     if (o->out_dir.empty()) o->out_dir = sim::make_run_dir("runs", "regress");
@@ -538,12 +558,17 @@ void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
       std::cout << runs.size() << " runs";
       if (o->shard.active()) std::cout << " of " << plan.runs.size() << " (shard " << o->shard.text() << ")";
       std::cout << ", expected cost " << cost << "\n";
+      if (!o->shard.active() && o->only_ids.empty()) {
+        std::vector<double> costs;
+        for (const auto& r : plan.runs) costs.push_back(r.cost);
+        sim::print_shard_scaling(costs, std::cout);
+      }
       return;
     }
     // after --list, which only shows the runs: --slurm --list submits nothing
-    if (*use_slurm) {
-      if (cmd->count("--jobs")) slurm->jobs = o->jobs;
-      status = sim::submit_regression_to_slurm(self, *o, *slurm, std::cout, std::cerr);
+    if (sharding->use_slurm) {
+      if (cmd->count("--jobs")) sharding->slurm.jobs = o->jobs;
+      status = sim::submit_regression_to_slurm(self, *o, sharding->slurm, std::cout, std::cerr);
       return;
     }
     status = sim::run_regression(self, *o, std::cout, std::cerr);
@@ -556,8 +581,9 @@ void add_merge_command(CLI::App& app, int& status, int argc, char** argv) {
   auto* cmd = app.add_subcommand(
       "merge",
       "Join the --out folders of `conesim regress --shard I/N` (and of --only-missing reruns) "
-      "into the summary.json, junit.xml and summary.html one unsharded regress writes. Runs of a "
-      "shard that wrote no summary are listed as missing, with the command that runs only them. "
+      "into the summary.json, junit.xml and summary.html one unsharded regress writes, or those "
+      "of `conesim compare --shard I/N` into its compare.json, compare.md and compare.html. Runs "
+      "with no result are listed as missing, with the command that runs only them. "
       "Exit 0 when every run is there and passed, 1 otherwise, 2 for bad input");
   auto m = std::make_shared<conesim::sim::MergeOptions>();
   auto baseline = std::make_shared<fs::path>();
@@ -565,22 +591,27 @@ void add_merge_command(CLI::App& app, int& status, int argc, char** argv) {
   cmd->add_option("DIR", m->dirs, "The shards' --out folders")->required();
   cmd->add_option("--out", m->out_dir, "Folder of the merged summaries")->required();
   cmd->add_option("--baseline", *baseline,
-                  "A stored summary.json (default: the shards' own --baseline, if any)");
+                  "A stored summary.json (default: the shards' own --baseline, if any; regress "
+                  "shards only)");
   cmd->add_option("--expect", *expect,
-                  "A summary.json the merged one must equal apart from timing (exit 1 and the "
-                  "differences when not): e.g. the unsharded run's");
+                  "A summary.json (compare.json for compare shards) the merged one must equal "
+                  "apart from timing (exit 1 and the differences when not): e.g. the unsharded "
+                  "run's");
   cmd->callback([=, &status] {
     if (!baseline->empty()) m->baseline = *baseline;
     if (!expect->empty()) m->expect = *expect;
     for (int i = 0; i < argc; ++i) m->command_line += (i ? " " : "") + std::string(argv[i]);
-    status = conesim::sim::merge_regression(*m, std::cout, std::cerr);
+    // compare shards or regress shards: their plan.json says which
+    status = conesim::sim::holds_compare_plan(m->dirs)
+                 ? conesim::sim::merge_compare(*m, std::cout, std::cerr)
+                 : conesim::sim::merge_regression(*m, std::cout, std::cerr);
     std::cout << m->out_dir.string() << "\n";
   });
 }
 
 // `conesim slurm status JOB...`
 void add_slurm_commands(CLI::App& app, int& status) {
-  auto* slurm = app.add_subcommand("slurm", "Follow a regression submitted with --slurm");
+  auto* slurm = app.add_subcommand("slurm", "Follow a regress or compare submitted with --slurm");
   slurm->require_subcommand(1);
   auto* cmd = slurm->add_subcommand(
       "status",
@@ -588,7 +619,7 @@ void add_slurm_commands(CLI::App& app, int& status) {
       "completed, 1 when one failed or was cancelled, 3 while some run, 2 for an unknown job");
   auto jobs = std::make_shared<std::vector<std::string>>();
   auto wait = std::make_shared<bool>(false);
-  cmd->add_option("JOB", *jobs, "Job ids, or the --out folder of `conesim regress --slurm`")
+  cmd->add_option("JOB", *jobs, "Job ids, or the --out folder of `conesim regress --slurm` (or compare)")
       ->required();
   cmd->add_flag("--wait", *wait, "Wait until no task is pending or running");
   cmd->callback([=, &status] {
@@ -623,25 +654,61 @@ void add_compare_command(CLI::App& app, int& status, int argc, char** argv) {
   cmd->add_flag("--reuse", o->reuse,
                 "With --out of an earlier call: runs that wrote their metrics.json are read, not "
                 "run again (the outputs are written anew)");
-  cmd->add_flag("--list", *list, "Print the runs (id and folder) and stop: nothing runs");
+  cmd->add_flag("--list", *list,
+                "Print the runs (id, folder, expected cost) and stop: nothing runs; without "
+                "--shard also how the cost spreads over 1 to 32 shards");
+  auto sharding = std::make_shared<ShardingFlags>();
+  add_sharding_options(cmd, *sharding);
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;
     if (!seeds->empty()) o->seeds = sim::parse_seeds(*seeds);
+    if (!sharding->shard.empty()) o->shard = sim::parse_shard(sharding->shard);
+    check_sharding_options(cmd, *sharding, o->shard.active(), o->reuse, "--reuse",
+                           !o->out_dir.empty());
     o->plot = !*no_plot;
     for (int i = 0; i < argc; ++i) o->command_line += (i ? " " : "") + std::string(argv[i]);
+    {
+      int k = 1;
+      while (k < argc && std::string(argv[k]) != "compare") ++k;
+      for (++k; k < argc; ++k) o->args.push_back(argv[k]);
+    }
     std::error_code ec;
     fs::path self = fs::read_symlink("/proc/self/exe", ec);
     if (ec) self = fs::absolute(argv[0]);
     if (*list) {
       const sim::StudyPlan plan = sim::plan_study(*o);
-      for (const auto& r : plan.runs) std::cout << r.id() << "  " << r.dir.string() << "\n";
-      std::cout << plan.runs.size() << " runs\n";
+      double cost = 0.0;
+      const std::vector<size_t> picked = sim::selected_study_runs(plan, *o);
+      for (size_t i : picked) {
+        const auto& r = plan.runs[i];
+        std::cout << r.id() << "  " << r.dir.string() << "  cost " << r.cost << "\n";
+        cost += r.cost;
+      }
+      std::cout << picked.size() << " runs";
+      if (o->shard.active())
+        std::cout << " of " << plan.runs.size() << " (shard " << o->shard.text() << ")";
+      std::cout << ", expected cost " << cost << "\n";
+      if (!o->shard.active()) {
+        std::vector<double> costs;
+        for (const auto& r : plan.runs) costs.push_back(r.cost);
+        sim::print_shard_scaling(costs, std::cout);
+      }
       return;
     }
     sim::install_interrupt_handlers();
+    if (!sharding->only_missing.empty()) {
+      status = sim::rerun_missing_compare(self, *o, sharding->only_missing, std::cout, std::cerr);
+      return;
+    }
     // bad input stops before a folder is made
-    sim::plan_study(*o);
+    const sim::StudyPlan plan = sim::plan_study(*o);
     if (o->out_dir.empty()) o->out_dir = sim::make_run_dir("runs", "compare-" + o->study);
+    if (sharding->use_slurm) {
+      if (cmd->count("--jobs")) sharding->slurm.jobs = o->jobs;
+      status = sim::submit_shards_to_slurm(self, {"compare", o->args, o->out_dir, plan.runs.size()},
+                                           sharding->slurm, std::cout, std::cerr);
+      return;
+    }
     status = sim::run_compare(self, *o, std::cout, std::cerr);
   });
 }

@@ -2,7 +2,8 @@
 # A real single-node Slurm (tests/cluster/slurm_local.sh: munged, slurmctld and slurmd of this
 # user, everything in a temporary folder): a sharded regression submitted through
 # `conesim regress --slurm` merges into the unsharded summary (timing aside); a shard cancelled
-# with scancel leaves its runs missing in the merge, and the printed command completes it.
+# with scancel leaves its runs missing in the merge, and the printed command completes it; a tiny
+# comparison submitted through `conesim compare --slurm` merges into the unsharded compare.json.
 # Exit 77 (ctest: skipped) only when this machine cannot run the daemons.
 set -euo pipefail
 conesim="$1"
@@ -67,3 +68,18 @@ eval "$rerun" >"$tmp/rerun.log" 2>&1 || fail "the rerun command: $(tail -n 8 "$t
   --expect "$tmp/whole/summary.json" >"$tmp/check2.log" 2>&1 ||
   fail "cancelled shard rerun does not give the unsharded summary: $(cat "$tmp/check2.log")"
 echo "cancelled shard rerun == unsharded after $((SECONDS - started)) s"
+
+# 3. a tiny comparison (monash, one lap of FSG, seeds 1-2: 4 runs) through `compare --slurm`:
+# the merge job writes the unsharded compare.json (timing aside)
+data="$(cd "$here/../data/tracks" && pwd)"
+cstudy=(monash --track "$data/fssim/FSG.yaml" --seeds 1-2 --set driver.trackdrive_laps=1 --no-plot)
+"$conesim" compare "${cstudy[@]}" --jobs 2 --out "$tmp/cwhole" >"$tmp/cwhole.log" 2>&1 ||
+  fail "unsharded compare: $(tail -n 5 "$tmp/cwhole.log")"
+"$conesim" compare "${cstudy[@]}" --slurm --shards 2 --cpus-per-task 1 --time 10 \
+  --out "$tmp/ccluster" >"$tmp/csubmit.log" 2>&1 || fail "compare submit: $(cat "$tmp/csubmit.log")"
+timeout 300 "$conesim" slurm status "$tmp/ccluster" --wait >"$tmp/cstatus.log" 2>&1 ||
+  fail "the compare jobs did not all complete: $(cat "$tmp/cstatus.log"; cat "$tmp"/ccluster/slurm/*.log)"
+[ -f "$tmp/ccluster/compare.json" ] || fail "the merge job wrote no compare.json: $(cat "$tmp/ccluster/slurm/merge.log")"
+"$conesim" merge "$tmp"/ccluster/shard-{1,2} --out "$tmp/ccheck" --expect "$tmp/cwhole/compare.json" \
+  >"$tmp/ccheck.log" 2>&1 || fail "merged compare differs from the unsharded one: $(cat "$tmp/ccheck.log")"
+echo "compare sharded through Slurm == unsharded after $((SECONDS - started)) s"
