@@ -358,9 +358,11 @@ void plot_track(const Track& track, std::optional<EventType> event, const fs::pa
     // the laps end at the same gate: their labels go one under the other in a single text
     const size_t first_lap = texts.size();
     for (const auto& [where, label] : overlay->lap_ends) {
+      // a copy to capture: clang before 16 cannot capture a structured binding
+      const core::Vec2 at = where;
       auto same_place = std::find_if(texts.begin() + static_cast<std::ptrdiff_t>(first_lap),
-                                     texts.end(), [&where](const auto& t) {
-                                       return (t.first - where).norm() < 5.0;
+                                     texts.end(), [&at](const auto& t) {
+                                       return (t.first - at).norm() < 5.0;
                                      });
       if (same_place == texts.end())
         texts.push_back({where, cleaned(label)});
