@@ -6,11 +6,14 @@
 #include <cstdlib>
 #include <cstring>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
 
 #include "core/error.hpp"
 #include "sim/perception_runner.hpp"
+#include "sim/sensor_rig.hpp"
 #include "tracks/io.hpp"
 #include "vehicle_models/vehicle_params.hpp"
 
@@ -25,12 +28,17 @@ using core::TimeUs;
 namespace {
 
 // replay.bin: "CSRP", a uint32 version, then records: a uint8 type, a uint32 payload size and
-// the payload, little-endian throughout (docs/replay.md)
+// the payload, little-endian throughout (docs/replay.md). A new kind of record gets a new type
+// and keeps the version: a reader skips the types it does not know, so older conesims still
+// read a newer log (the version changes only when a known record's layout does)
 constexpr char kMagic[4] = {'C', 'S', 'R', 'P'};
 constexpr uint32_t kVersion = 1;
 constexpr uint8_t kRecordSweep = 1;
 constexpr uint8_t kRecordMap = 2;
 constexpr uint8_t kRecordDetections = 3;
+constexpr uint8_t kRecordCamera = 4;
+// a camera record's box: float32 x0, y0, x1, y1, uint8 class, int32 id, float32 range
+constexpr size_t kCameraBoxBytes = 25;
 
 template <typename T>
 void put(std::string& out, const T& v) {
@@ -207,6 +215,45 @@ void ReplayRecorder::on_detections(const DeliveredDetections& frame) {
   write_record(kRecordDetections, payload);
 }
 
+void ReplayRecorder::on_camera(const CameraReplayFrame& frame) {
+  const core::RgbImage* left = frame.left;
+  if (!left || left->width_px <= 0 || left->height_px <= 0 ||
+      left->rgb.size() < 3 * static_cast<size_t>(left->width_px) * left->height_px)
+    return;
+  const int width = std::clamp(settings_.camera_width_px, 16, left->width_px);
+  const int height =
+      std::max(1, static_cast<int>(std::lround(double(left->height_px) * width / left->width_px)));
+  const cv::Mat rgb(left->height_px, left->width_px, CV_8UC3,
+                    const_cast<uint8_t*>(left->rgb.data()));
+  cv::Mat small, bgr;
+  cv::resize(rgb, small, cv::Size(width, height), 0, 0, cv::INTER_AREA);
+  cv::cvtColor(small, bgr, cv::COLOR_RGB2BGR);
+  std::vector<uchar> jpeg;
+  cv::imencode(".jpg", bgr, jpeg,
+               {cv::IMWRITE_JPEG_QUALITY, std::clamp(settings_.camera_jpeg_quality, 1, 100)});
+  const double sx = double(width) / left->width_px, sy = double(height) / left->height_px;
+  std::string payload;
+  put(payload, core::to_seconds(frame.t));
+  put(payload, static_cast<uint16_t>(width));
+  put(payload, static_cast<uint16_t>(height));
+  put(payload, static_cast<uint32_t>(jpeg.size()));
+  put_array(payload, jpeg);
+  for (const std::vector<CameraBox>* boxes : {&frame.detected, &frame.truth}) {
+    put(payload, static_cast<uint32_t>(boxes->size()));
+    for (const CameraBox& b : *boxes) {
+      put(payload, static_cast<float>(b.x0 * sx));
+      put(payload, static_cast<float>(b.y0 * sy));
+      put(payload, static_cast<float>(b.x1 * sx));
+      put(payload, static_cast<float>(b.y1 * sy));
+      put(payload, class_code(b.cls));
+      put(payload, static_cast<int32_t>(b.id));
+      put(payload, b.range_m);
+    }
+  }
+  write_record(kRecordCamera, payload);
+  ++camera_frames_;
+}
+
 void ReplayRecorder::write_map(const std::string& lane, double t_s,
                                const std::vector<core::MapCone>& map) {
   std::string payload;
@@ -327,6 +374,38 @@ ReplayLog read_replay_log(const fs::path& file) {
                              [&](const auto& l) { return l.first == lane; });
       if (it == log.maps.end()) it = log.maps.insert(log.maps.end(), {lane, {}});
       it->second.push_back(std::move(m));
+    } else if (type == kRecordCamera) {
+      ReplayLog::CameraFrame c;
+      uint16_t width = 0, height = 0;
+      uint32_t bytes = 0;
+      take(&c.t_s, 8, end);
+      take(&width, 2, end);
+      take(&height, 2, end);
+      take(&bytes, 4, end);
+      if (bytes > end - at) fail("a camera image longer than its record");
+      c.width = width, c.height = height;
+      c.jpeg.assign(data.data() + at, bytes);
+      at += bytes;
+      for (std::vector<ReplayLog::CameraFrame::Box>* boxes : {&c.detected, &c.truth}) {
+        uint32_t n = 0;
+        take(&n, 4, end);
+        if (static_cast<uint64_t>(n) * kCameraBoxBytes > end - at)
+          fail("camera boxes longer than their record");
+        boxes->resize(n);
+        for (ReplayLog::CameraFrame::Box& b : *boxes) {
+          take(&b.x0, 4, end);
+          take(&b.y0, 4, end);
+          take(&b.x1, 4, end);
+          take(&b.y1, 4, end);
+          take(&b.cls, 1, end);
+          take(&b.id, 4, end);
+          take(&b.range_m, 4, end);
+        }
+      }
+      if (at != end) fail("a camera frame whose size does not match");
+      if (!std::isfinite(c.t_s) || width == 0 || height == 0 || bytes == 0)
+        fail("a camera frame without a time or an image");
+      log.camera.push_back(std::move(c));
     } else {
       at = end;  // a record of a later version: skipped
     }
@@ -338,6 +417,8 @@ ReplayLog read_replay_log(const fs::path& file) {
   std::stable_sort(log.sweeps.begin(), log.sweeps.end(),
                    [](const auto& a, const auto& b) { return a.t_s < b.t_s; });
   std::stable_sort(log.detections.begin(), log.detections.end(),
+                   [](const auto& a, const auto& b) { return a.t_s < b.t_s; });
+  std::stable_sort(log.camera.begin(), log.camera.end(),
                    [](const auto& a, const auto& b) { return a.t_s < b.t_s; });
   return log;
 }
@@ -614,6 +695,39 @@ fs::path write_replay_page(const fs::path& run_dir, const fs::path& three_js_dir
       maps.push_back({{"lane", lane}, {"key", key}, {"snapshots", snaps.size()}});
     }
   }
+  // the left camera's frames: each JPEG as its own base64 string (the page shows it as a data
+  // URL), the boxes of all frames in flat arrays, detected then true per frame
+  nlohmann::json camera;  // null: no panel
+  if (log && !log->camera.empty()) {
+    std::vector<float> ct, box;
+    std::vector<uint32_t> box_offset{0};
+    std::vector<int32_t> box_id;
+    std::vector<uint8_t> box_cls, box_truth;
+    nlohmann::json jpegs = nlohmann::json::array();
+    for (const ReplayLog::CameraFrame& f : log->camera) {
+      ct.push_back(static_cast<float>(f.t_s));
+      jpegs.push_back(base64(f.jpeg.data(), f.jpeg.size()));
+      for (const auto* boxes : {&f.detected, &f.truth})
+        for (const ReplayLog::CameraFrame::Box& b : *boxes) {
+          box.insert(box.end(), {b.x0, b.y0, b.x1, b.y1, b.range_m});
+          box_id.push_back(b.id);
+          box_cls.push_back(b.cls);
+          box_truth.push_back(boxes == &f.truth ? 1 : 0);
+        }
+      box_offset.push_back(static_cast<uint32_t>(box_id.size()));
+    }
+    const std::pair<const char*, std::string> arrays[] = {{"cam_t", b64(ct)},
+                                                          {"cam_box_offset", b64(box_offset)},
+                                                          {"cam_box", b64(box)},
+                                                          {"cam_box_id", b64(box_id)},
+                                                          {"cam_box_cls", b64(box_cls)},
+                                                          {"cam_box_truth", b64(box_truth)}};
+    for (const auto& array : arrays) blobs[array.first] = array.second;
+    blobs["cam_jpeg"] = std::move(jpegs);
+    camera = {{"frames", log->camera.size()},
+              {"width", log->camera.front().width},
+              {"height", log->camera.front().height}};
+  }
   const vehicle_models::VehicleParams vp;
   nlohmann::json meta = {
       {"scenario", metrics.value("scenario", "")},
@@ -634,6 +748,7 @@ fs::path write_replay_page(const fs::path& run_dir, const fs::path& three_js_dir
       {"sweeps", log ? log->sweeps.size() : 0},
       {"sweep_points", sweep_points},
       {"has_log", log.has_value()},
+      {"camera", camera},
       {"vehicle",
        {{"length_m", vp.length_m},
         {"width_m", vp.width_m},

@@ -23,6 +23,7 @@
 namespace conesim::sim {
 
 struct DeliveredDetections;
+struct CameraReplayFrame;
 
 inline constexpr const char* kReplayLogFile = "replay.bin";
 inline constexpr const char* kReplayPageFile = "replay.html";
@@ -38,6 +39,11 @@ struct ReplayRecordSettings {
   int max_points_per_sweep = 3000;
   /// Map snapshots per sim second and lane (the last one of a lane is always kept).
   double map_rate_hz = 2.0;
+  /// Camera frames kept per sim second (when the run has the stereo camera anyway), the left
+  /// image scaled down to this width (its aspect kept) and JPEG-compressed at this quality.
+  double camera_rate_hz = 4.0;
+  int camera_width_px = 320;
+  int camera_jpeg_quality = 70;
 };
 
 /// Records a run for its replay: a sensor tap for the LiDAR (it asks for the sweeps only when
@@ -60,12 +66,17 @@ class ReplayRecorder : public SensorTap {
   /// A cone detection frame as the autonomy gets it: each detection's true cone (-1: a false
   /// positive) and where it was put, for colouring the points by outcome.
   void on_detections(const DeliveredDetections& frame);
+  /// A camera frame (SensorRig::set_camera_observer, at settings().camera_rate_hz): the left
+  /// image scaled down and JPEG-compressed, its boxes scaled with it.
+  void on_camera(const CameraReplayFrame& frame);
   /// A SLAM lane's estimate taking effect (SlamRunner::set_map_observer).
   void on_map(const std::string& lane, core::TimeUs stamp, const core::Estimate& estimate);
   /// Writes each lane's last map and renames the log into place.
   void finish();
 
   int sweeps_recorded() const { return sweeps_; }
+  int camera_frames_recorded() const { return camera_frames_; }
+  const ReplayRecordSettings& settings() const { return settings_; }
 
  private:
   core::Pose2 pose_at(core::TimeUs t) const;
@@ -80,6 +91,7 @@ class ReplayRecorder : public SensorTap {
   std::vector<int8_t> cone_class_;
   std::deque<std::pair<core::TimeUs, core::Pose2>> poses_;
   int sweeps_ = 0;
+  int camera_frames_ = 0;
   struct LaneMaps {
     core::TimeUs last_written_us = -1;
     double last_t_s = 0.0;
@@ -113,8 +125,27 @@ struct ReplayLog {
     std::vector<float> xy;
     std::vector<uint8_t> cls;
   };
+  struct CameraFrame {
+    /// Capture time (the pair's stamp), s.
+    double t_s = 0.0;
+    /// The JPEG's size, pixels.
+    int width = 0, height = 0;
+    std::string jpeg;
+    struct Box {
+      /// In the JPEG's pixels (x right, y down).
+      float x0 = 0.f, y0 = 0.f, x1 = 0.f, y1 = 0.f;
+      /// 1 + core::ConeClass.
+      uint8_t cls = 0;
+      /// A detection's track id (-1 none), a true box's cone id.
+      int32_t id = -1;
+      float range_m = 0.f;
+    };
+    std::vector<Box> detected, truth;
+  };
   std::vector<Sweep> sweeps;
   std::vector<Detections> detections;
+  /// The left camera's frames (runs with the stereo camera), in time order.
+  std::vector<CameraFrame> camera;
   /// Each lane's snapshots in time order, lanes in the order they first appear.
   std::vector<std::pair<std::string, std::vector<MapSnapshot>>> maps;
 };

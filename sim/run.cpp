@@ -638,6 +638,11 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       tap = recorder.get();
   }
   SensorRig rig(s, track, car, options.dump, options.out_dir, tap);
+  // the replay's camera frames, a few a second, when the run has the camera anyway
+  if (recorder && rig.camera_on() && recorder->settings().camera_rate_hz > 0.0)
+    rig.set_camera_observer(
+        core::from_seconds(1.0 / recorder->settings().camera_rate_hz),
+        [r = recorder.get()](const CameraReplayFrame& frame) { r->on_camera(frame); });
   // the car's own sensors for the tap: a feed of its own, with SLAM's seed and noise (so the
   // samples SLAM's odometry integrates)
   std::optional<VehicleSensorFeed> tap_feed;

@@ -752,6 +752,30 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
     }
   }
 
+  // the replay's frame: the left image with the detected and the true boxes
+  if (camera_observer_ && t >= next_camera_observed_us_) {
+    next_camera_observed_us_ = t + std::max<TimeUs>(1, camera_observer_period_us_);
+    CameraReplayFrame rec;
+    rec.t = t;
+    rec.left = &frame_.left;
+    const core::Vec2 camera_xy = frame_.left_in_vehicle.position.head<2>();
+    if (detections)
+      for (size_t i = 0; i < detections->cones.size(); ++i) {
+        const auto& c = detections->cones[i];
+        rec.detected.push_back({static_cast<float>(c.box.x), static_cast<float>(c.box.y),
+                                static_cast<float>(c.box.x + c.box.width),
+                                static_cast<float>(c.box.y + c.box.height), c.observation.cls,
+                                i < track_ids.size() ? track_ids[i] : -1,
+                                static_cast<float>((c.observation.position - camera_xy).norm())});
+      }
+    for (const TrueBox& b : true_boxes(frame_, frame_labels_.left_in_track, track_,
+                                       [&referee](int id) { return referee.is_knocked(id); }))
+      rec.truth.push_back({static_cast<float>(b.x0), static_cast<float>(b.y0),
+                           static_cast<float>(b.x1), static_cast<float>(b.y1), b.cls, b.id,
+                           static_cast<float>(b.range_m)});
+    camera_observer_(rec);
+  }
+
   // the dump: left and right PNG and a sidecar with the calibration and the true poses
   if (!dump_.sensors.count("camera") || index % dump_.every != 0) return;
   const fs::path dir = run_dir_ / "images/camera";

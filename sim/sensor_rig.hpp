@@ -5,6 +5,7 @@
 
 #include <deque>
 #include <filesystem>
+#include <functional>
 #include <future>
 #include <memory>
 #include <optional>
@@ -55,6 +56,26 @@ struct SensorRigStats {
   double stereo_detect_ms_total = 0.0;
 };
 
+/// A box in the left camera image, pixels (x right, y down).
+struct CameraBox {
+  float x0 = 0.f, y0 = 0.f, x1 = 0.f, y1 = 0.f;
+  core::ConeClass cls = core::ConeClass::kUnknown;
+  /// A detection: the tracker's id (-1 none); a true box: the cone's id in the run's track.
+  int id = -1;
+  /// From the left camera, m.
+  float range_m = 0.f;
+};
+
+/// One stereo pair as the replay records it (sim/replay.hpp): the left image as the perception
+/// got it (after the camera's faults), the stereo detector's boxes (none when the perception
+/// does not run it) and the true boxes (the review image's, occlusion applied), at capture time.
+struct CameraReplayFrame {
+  core::TimeUs t = 0;
+  const core::RgbImage* left = nullptr;
+  std::vector<CameraBox> detected;
+  std::vector<CameraBox> truth;
+};
+
 class SensorRig {
  public:
   /// Sets up the sensors the scenario, the dumps and the tap ask for. Throws
@@ -73,6 +94,15 @@ class SensorRig {
   void set_motion(const slam::frontend::SweepMotion& motion) {
     if (perception_) perception_->set_motion(motion);
     motion_ = motion;
+  }
+
+  /// Hands a camera frame to `observer` at most once per `period_us` (the first pair, then the
+  /// first one a period later, ...); never switches the camera on: a run without one calls
+  /// nothing.
+  void set_camera_observer(core::TimeUs period_us,
+                           std::function<void(const CameraReplayFrame&)> observer) {
+    camera_observer_period_us_ = period_us;
+    camera_observer_ = std::move(observer);
   }
 
   /// The raw-data perception (`perception: lidar | stereo | fused`), null otherwise.
@@ -189,6 +219,10 @@ class SensorRig {
   bool jitter_ = false;
   bool freezes_ = false;
   std::optional<core::StereoFrame> last_good_frame_;
+  // the replay's camera frames: how often, and when the next one is due
+  std::function<void(const CameraReplayFrame&)> camera_observer_;
+  core::TimeUs camera_observer_period_us_ = 0;
+  core::TimeUs next_camera_observed_us_ = 0;
 
   size_t knocked_seen_ = 0;
   std::string failure_;

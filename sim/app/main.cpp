@@ -411,12 +411,24 @@ void add_view_command(CLI::App& app) {
   auto video = std::make_shared<conesim::sim::VideoSettings>();
   cmd->add_flag("--mp4", *mp4,
                 "Write RUN_DIR/replay.mp4 instead: the run top-down, encoded by ffmpeg");
+  auto mp4_view = std::make_shared<std::string>("top");
+  cmd->add_option("--mp4-view", *mp4_view,
+                  "What the video shows (implies --mp4): top (replay.mp4, the default), chase "
+                  "(replay-chase.mp4: from behind and above the car, following it) or camera "
+                  "(replay-camera.mp4: the recorded left camera frames with the detected and "
+                  "true boxes; needs a run with the stereo camera made with --replay)")
+      ->check(CLI::IsMember({"top", "chase", "camera"}));
   cmd->add_option("--fps", video->fps, "Frames per second of the video (--mp4)")
       ->check(CLI::PositiveNumber);
   cmd->callback([=] {
+    using conesim::sim::VideoView;
+    video->view = *mp4_view == "chase"    ? VideoView::kChase
+                  : *mp4_view == "camera" ? VideoView::kCamera
+                                          : VideoView::kTop;
+    const bool want_video = *mp4 || cmd->count("--mp4-view") > 0;
     const fs::path page =
-        *mp4 ? conesim::sim::write_replay_video(*dir, *video)
-             : conesim::sim::write_replay_page(*dir, conesim::sim::default_three_js_dir());
+        want_video ? conesim::sim::write_replay_video(*dir, *video)
+                   : conesim::sim::write_replay_page(*dir, conesim::sim::default_three_js_dir());
     std::error_code ec;
     std::printf("%s (%.1f MB)\n", page.string().c_str(),
                 static_cast<double>(fs::file_size(page, ec)) / 1e6);

@@ -4,7 +4,10 @@ cone in the lane (one cone hit, then a DNF on a short time limit), its replay.ht
 headless Chromium at a time given in the URL (#t=..., which the page's own scrub code handles),
 the page's state (the <pre id="state"> JSON, read with --dump-dom) checked against metrics.json
 and trajectory.csv, and a screenshot checked for the car, the cones and the LiDAR points. Bad run
-folders are refused with the file named and no replay.html written.
+folders are refused with the file named and no replay.html written. A short autocross-stereo run
+with --replay records camera frames: its page shows the frame of the scrubbed time with its
+boxes in the corner panel (the state says which frame, its boxes, and that the image was drawn),
+and `conesim view --mp4-view camera` makes its camera video; the LiDAR run's page has no panel.
 
 usage: replay_test.py CONESIM_BINARY TEST_DATA_DIR
 """
@@ -26,6 +29,9 @@ DATA = os.path.abspath(sys.argv[2])
 TRACK = os.path.join(DATA, "replay", "cone_in_the_lane.csv")
 # the moment checked: after the cone hit (2.82 s), before the DNF; a trajectory row (20 Hz)
 T_CHECK = 8.5
+# the camera run: autocross-stereo stopped after a few seconds, checked at this time
+CAMERA_LIMIT_S = 5
+T_CAMERA = 4.1
 def chromium():
     for name in ("chromium", "chromium-browser", "google-chrome"):
         path = shutil.which(name)
@@ -190,6 +196,9 @@ def check_all(top):
         print("page ready %d ms after navigation (script %d ms)" % (state["load_ms"],
                                                                    state["script_ms"]))
 
+    if state.get("camera_frame") is not None:
+        fail("a run without a camera shows a camera panel: %s" % state["camera_frame"])
+
     # 5: a screenshot at the same moment shows the car, cones and points
     shot = os.path.join(top, "shot.png")
     p, seconds = browser(os.path.join(top, "profile-shot"), "--virtual-time-budget=3000",
@@ -215,6 +224,58 @@ def check_all(top):
     for what, least in (("car", 2000), ("blue", 40), ("yellow", 40), ("grey points", 300)):
         if counts[what] < least:
             fail("screenshot: %d %s pixels, expected at least %d" % (counts[what], what, least))
+
+    check_camera(top, run_dir)
+
+
+def check_camera(top, lidar_run):
+    """A stereo run's camera frames in the page's corner panel and in the camera video."""
+    run_dir = os.path.join(top, "stereo")
+    t0 = time.monotonic()
+    run([BIN, "run", "autocross-stereo", "--no-plot", "--replay",
+         "--set", "referee.timeout_autocross_s=%d" % CAMERA_LIMIT_S, "--out", run_dir],
+        expect=(0, 1))
+    print("stereo run: %.1f s" % (time.monotonic() - t0))
+    page = os.path.join(run_dir, "replay.html")
+    if not os.path.isfile(page):
+        fail("the stereo run wrote no replay.html")
+        return
+    p, seconds = browser(os.path.join(top, "profile-camera"), "--virtual-time-budget=3000",
+                         "--dump-dom", "file://" + page + "#t=%g" % T_CAMERA)
+    state = page_state(p.stdout)
+    print("chromium --dump-dom (camera): %.1f s" % seconds)
+    if state is None:
+        fail("no page state in the stereo run's DOM (exit %d): %s" % (p.returncode,
+                                                                       p.stderr[-600:]))
+        return
+    cam = state.get("camera_frame")
+    print("camera panel: %s" % json.dumps(cam))
+    # 4 frames a second recorded: the one shown is the latest captured by the scrubbed time
+    if not cam or not cam["shown"] or not cam["drawn"]:
+        fail("no camera frame drawn at %s s: %s" % (T_CAMERA, cam))
+        return
+    if not (T_CAMERA - 0.3 <= cam["t"] <= T_CAMERA):
+        fail("camera frame of %s s shown at %s s" % (cam["t"], T_CAMERA))
+    if cam["frames"] < 3 * CAMERA_LIMIT_S:
+        fail("%d camera frames recorded in a %d s run (4 a second)" % (cam["frames"],
+                                                                       CAMERA_LIMIT_S))
+    if cam["boxes"]["truth"] < 1 or cam["boxes"]["detected"] < 1:
+        fail("the camera frame at %s s has no detected or no true boxes: %s" % (cam["t"],
+                                                                                cam["boxes"]))
+    # the camera video of the stereo run; the LiDAR run (no camera) is refused
+    p = run([BIN, "view", run_dir, "--mp4-view", "camera", "--fps", "4"], expect=(0,))
+    video = os.path.join(run_dir, "replay-camera.mp4")
+    if not os.path.isfile(video) or os.path.getsize(video) < 1000:
+        fail("view --mp4-view camera wrote no replay-camera.mp4")
+    else:
+        print("replay-camera.mp4: %.2f MB" % (os.path.getsize(video) / 1e6))
+    p = run([BIN, "view", lidar_run, "--mp4-view", "camera"], expect=(2,))
+    if not re.search(r"replay\.bin: has no camera frames", p.stderr):
+        fail("camera video of a run without a camera: %s" % p.stderr.strip()[:300])
+    leftovers = [n for n in os.listdir(lidar_run)
+                 if n.startswith(".partial") or n == "replay-camera.mp4"]
+    if leftovers:
+        fail("a refused camera video left %s" % leftovers)
 
 
 if __name__ == "__main__":

@@ -6,8 +6,9 @@ sweep, then:
 - the LiDAR review image of a sweep whose sidecar lists a missed cone shows the miss marker (the
   legend's pure red cross) at that cone's place in the picture, and a found cone's place shows the
   found ring (green) and no miss marker;
-- `conesim view RUN --mp4` gives a replay.mp4 that ffprobe reads as H.264 with the expected
-  frame count and duration, whose frames are not uniform and change as the car drives;
+- `conesim view RUN --mp4` gives a replay.mp4 (and `--mp4-view chase` a replay-chase.mp4) that
+  ffprobe reads as H.264 with the expected frame count and duration, whose frames are not
+  uniform and change as the car drives;
 - bad input is refused with exit 2 and the file named, and never leaves a replay.mp4: a folder
   that is not a run, one without trajectory.csv, ffmpeg missing, ffmpeg failing.
 
@@ -107,45 +108,53 @@ def frame_at(path, t_s, width, height):
 
 
 def check_video(run_dir, top):
+    check_encoded(run_dir, ["--mp4"], "replay.mp4")
+    check_encoded(run_dir, ["--mp4-view", "chase"], "replay-chase.mp4")
+    check_refusals(run_dir, top)
+
+
+def check_encoded(run_dir, flags, name):
     with open(os.path.join(run_dir, "trajectory.csv")) as f:
         times = [float(line.split(",")[0]) for line in f.readlines()[1:] if line.strip()]
     frames = 1 + math.floor((times[-1] - times[0]) * FPS + 1e-9)
-    run([BIN, "view", run_dir, "--mp4", "--fps", str(FPS)], expect=(0,))
-    video = os.path.join(run_dir, "replay.mp4")
+    run([BIN, "view", run_dir] + flags + ["--fps", str(FPS)], expect=(0,))
+    video = os.path.join(run_dir, name)
     if not os.path.isfile(video):
-        fail("view --mp4 wrote no replay.mp4")
+        fail("view %s wrote no %s" % (" ".join(flags), name))
         return
     if [n for n in os.listdir(run_dir) if n.startswith(".partial")]:
-        fail("a partial file was left beside replay.mp4")
+        fail("a partial file was left beside " + name)
     info = ffprobe(video)
     if info is None:
         return
     stream = info["streams"][0]
     duration = float(info["format"]["duration"])
-    print("replay.mp4: %s %dx%d %s, %s frames, %.2f s, %.2f MB" % (
-        stream["codec_name"], stream["width"], stream["height"], stream["pix_fmt"],
+    print("%s: %s %dx%d %s, %s frames, %.2f s, %.2f MB" % (
+        name, stream["codec_name"], stream["width"], stream["height"], stream["pix_fmt"],
         stream["nb_read_frames"], duration, os.path.getsize(video) / 1e6))
     if stream["codec_name"] != "h264" or stream["pix_fmt"] != "yuv420p":
-        fail("replay.mp4 is %s %s, expected h264 yuv420p" % (stream["codec_name"],
-                                                            stream["pix_fmt"]))
+        fail("%s is %s %s, expected h264 yuv420p" % (name, stream["codec_name"],
+                                                    stream["pix_fmt"]))
     if int(stream["nb_read_frames"]) != frames:
-        fail("replay.mp4 has %s frames, expected %d (%.2f s of trajectory at %d fps)" % (
-            stream["nb_read_frames"], frames, times[-1] - times[0], FPS))
+        fail("%s has %s frames, expected %d (%.2f s of trajectory at %d fps)" % (
+            name, stream["nb_read_frames"], frames, times[-1] - times[0], FPS))
     if abs(duration - frames / FPS) > 1.5 / FPS:
-        fail("replay.mp4 lasts %.2f s, expected %.2f" % (duration, frames / FPS))
+        fail("%s lasts %.2f s, expected %.2f" % (name, duration, frames / FPS))
     w, h = stream["width"], stream["height"]
     early, late = frame_at(video, 0.5, w, h), frame_at(video, duration - 0.5, w, h)
     if early is None or late is None:
-        fail("ffmpeg could not decode frames of replay.mp4")
+        fail("ffmpeg could not decode frames of " + name)
         return
     colours = len(set(early[i:i + 3] for i in range(0, len(early), 3 * 7)))
     if colours < 20:
-        fail("the first frame looks uniform: %d colours" % colours)
+        fail("%s: the first frame looks uniform: %d colours" % (name, colours))
     changed = sum(1 for i in range(0, len(early), 3) if abs(early[i] - late[i]) > 40)
-    print("frames: %d colours early, %d pixels changed by the end" % (colours, changed))
+    print("%s frames: %d colours early, %d pixels changed by the end" % (name, colours, changed))
     if changed < 500:
-        fail("the video barely changes as the car drives: %d pixels" % changed)
+        fail("%s barely changes as the car drives: %d pixels" % (name, changed))
 
+
+def check_refusals(run_dir, top):
     # bad input: exit 2, the file named, no replay.mp4
     def refused(name, folder, needle, env=None):
         p = run([BIN, "view", folder, "--mp4"], env=env)
@@ -171,6 +180,13 @@ def check_video(run_dir, top):
         f.write("#!/bin/sh\ncat >/dev/null\necho 'broken encoder' >&2\nexit 1\n")
     os.chmod(failing, 0o755)
     refused("ffmpeg failing", copy, "replay.mp4", dict(os.environ, CONESIM_FFMPEG=failing))
+    # the camera video of a run without camera frames: refused before ffmpeg starts
+    p = run([BIN, "view", copy, "--mp4-view", "camera"])
+    if p.returncode != 2 or "replay.bin: has no camera frames" not in p.stderr:
+        fail("camera video without camera frames: exit %d: %s" % (p.returncode,
+                                                                  p.stderr.strip()[:300]))
+    if any(n.startswith(".partial") or n == "replay-camera.mp4" for n in os.listdir(copy)):
+        fail("a refused camera video left a file")
 
 
 def main():
