@@ -616,7 +616,7 @@ StudyPlan plan_study(const CompareOptions& o) {
           const auto& [label, file] = tracks[t];
           StudyRun r{def.name, cond.name, label, file, seed, sets, {}};
           r.dir = fs::path(def.name) / cond.name / (flat(label) + "-s" + std::to_string(seed));
-          r.cost = scenario_run_cost(s, lap_m[t]);
+          r.cost = scenario_run_cost(s, lap_m[t], false);  // its runs draw no run.png
           plan.runs.push_back(r);
         }
     }

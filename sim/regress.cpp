@@ -307,17 +307,21 @@ Shard parse_shard(const std::string& text, const std::string& option) {
 }
 
 double run_cost(EventType event, double lap_length_m, bool slam_driving, int slam_shadows,
-                bool raw_perception, int trackdrive_laps) {
-  double laps = 1.0, usual_m = 300.0;
+                bool raw_perception, int trackdrive_laps, bool plot) {
+  // per event: laps, the usual lap, and the cost of a lap of 300 m against one trackdrive lap
+  // (exploring at autocross speed costs more per metre; skidpad and acceleration are short)
+  double laps = 1.0, usual_m = 300.0, per_lap = 1.0;
   switch (event) {
-    case EventType::kAcceleration: usual_m = 75.0; break;
-    case EventType::kSkidpad: laps = 4.0; usual_m = 60.0; break;
-    case EventType::kAutocross: break;
+    case EventType::kAcceleration: usual_m = 75.0; per_lap = kAccelerationPer300m; break;
+    case EventType::kSkidpad: laps = 4.0; usual_m = 60.0; per_lap = kSkidpadPer300m; break;
+    case EventType::kAutocross: per_lap = kAutocrossPer300m; break;
     case EventType::kTrackdrive: laps = trackdrive_laps > 0 ? trackdrive_laps : 10.0; break;
   }
   const double length = lap_length_m > 1.0 ? lap_length_m : usual_m;
-  double cost = laps * length / 300.0 * (slam_driving ? 1.5 : 1.0) + 0.5 * slam_shadows;
+  double cost = laps * length / 300.0 * per_lap * (slam_driving ? 1.5 : 1.0) + 0.5 * slam_shadows;
   if (raw_perception) cost *= 3.0;
+  // what every run costs besides driving: its process, its track, its outputs (run.png)
+  cost += kRunStartCost + (plot ? kRunPlotCost : 0.0);
   return std::max(0.001, std::round(cost * 1000.0) / 1000.0);
 }
 
@@ -339,10 +343,22 @@ std::vector<std::vector<size_t>> shard_runs(const std::vector<double>& costs, in
   return shards;
 }
 
-double scenario_run_cost(const Scenario& s, double lap_length_m) {
+double scenario_run_cost(const Scenario& s, double lap_length_m, bool plot) {
   const bool raw = s.perception == "lidar" || s.perception == "stereo" || s.perception == "fused";
   return run_cost(s.event, lap_length_m, s.slam != "none", static_cast<int>(s.slam_shadows.size()),
-                  raw, s.driver.trackdrive_laps);
+                  raw, s.driver.trackdrive_laps, plot);
+}
+
+double scenario_lap_length_m(const fs::path& scenario_file, const std::vector<std::string>& sets,
+                             unsigned long long seed) {
+  try {
+    // as `conesim run SCENARIO --seed SEED` loads it: a generated circuit follows the seed
+    const Scenario s = load_scenario(scenario_file, sets, seed);
+    if (s.event == EventType::kSkidpad || s.event == EventType::kAcceleration) return 0.0;
+    return centre_line_length(scenario_track(s));
+  } catch (const std::exception&) {
+    return 0.0;  // the run says why it cannot drive
+  }
 }
 
 double track_lap_length_m(const fs::path& file) {
@@ -482,7 +498,7 @@ RegressionPlan plan_regression(const fs::path& self, const RegressOptions& o) {
     // every scenario loads with the overrides: a typo stops here, not in every run
     const Scenario s = load_scenario(find_scenario(name), o.sets);
     const std::string stem = fs::path(name).stem().string();
-    auto cost = [&](double length_m) { return scenario_run_cost(s, length_m); };
+    auto cost = [&](double length_m) { return scenario_run_cost(s, length_m, o.plot); };
     std::vector<unsigned long long> seeds = o.seeds;
     if (seeds.empty()) {
       seeds = {1};
@@ -492,7 +508,8 @@ RegressionPlan plan_regression(const fs::path& self, const RegressOptions& o) {
     }
     if (!on_given_tracks) {
       for (unsigned long long seed : seeds)
-        plan.runs.push_back({stem, "", "", seed, stem + "-s" + std::to_string(seed), cost(0.0)});
+        plan.runs.push_back({stem, "", "", seed, stem + "-s" + std::to_string(seed),
+                             cost(scenario_lap_length_m(find_scenario(name), o.sets, seed))});
       continue;
     }
     // without scenarios named, each track runs its own event only

@@ -101,21 +101,39 @@ struct RegressionPlan {
   int event_mismatches = 0;
 };
 
-/// The expected cost of one run, in units of one ground-truth lap of a 300 m circuit: the laps
-/// the event drives (acceleration 1, skidpad 4, autocross 1, trackdrive 10) x the lap length /
-/// 300 m (the track file's centre line; on a scenario's own track the usual length: acceleration
-/// 75 m, skidpad 60 m, circuits 300 m), x 1.5 with a SLAM back-end driving, + 0.5 per shadow
-/// back-end, x 3 for raw-data perception (lidar, stereo, fused). Rounded to 1/1000 so that every
-/// machine balances the same list the same way.
+/// What a run costs besides driving, in run_cost's units: its process, its track (read or
+/// generated), its metrics and trajectory; and run.png when plots are written. Measured on
+/// 2 cores (see README, "Running on a cluster").
+inline constexpr double kRunStartCost = 0.2;
+inline constexpr double kRunPlotCost = 0.6;
+/// The cost of 300 m of an event's driving against 300 m of trackdrive (a trackdrive's ten laps
+/// average its exploring first lap with nine fast ones; autocross explores all the way).
+inline constexpr double kAutocrossPer300m = 2.1;
+inline constexpr double kSkidpadPer300m = 1.25;
+inline constexpr double kAccelerationPer300m = 1.0;
+
+/// The expected cost of one run, in units of one ground-truth trackdrive lap of a 300 m circuit:
+/// the laps the event drives (acceleration 1, skidpad 4, autocross 1, trackdrive 10) x the lap
+/// length / 300 m (the track's centre line; 0: the usual length, acceleration 75 m, skidpad
+/// 60 m, circuits 300 m) x the event's cost per 300 m (k...Per300m), x 1.5 with a SLAM back-end
+/// driving, + 0.5 per shadow back-end, x 3 for raw-data perception (lidar, stereo, fused), +
+/// kRunStartCost, + kRunPlotCost with `plot`. Rounded to 1/1000 so that every machine balances
+/// the same list the same way.
 /// `laps`: the laps a trackdrive drives when not the usual 10 (driver.trackdrive_laps; 0: 10).
 double run_cost(core::EventType event, double lap_length_m, bool slam_driving, int slam_shadows,
-                bool raw_perception, int laps = 0);
+                bool raw_perception, int laps = 0, bool plot = false);
 
 struct Scenario;
 
 /// run_cost of a run of scenario `s` (its event, SLAM back-ends, perception and trackdrive laps)
 /// on a lap of `lap_length_m` (0: the event's usual length).
-double scenario_run_cost(const Scenario& s, double lap_length_m);
+double scenario_run_cost(const Scenario& s, double lap_length_m, bool plot);
+
+/// The lap of the track the scenario in `scenario_file` with `sets` drives with `seed` (its
+/// file's, or the circuit generated from the seed: a few milliseconds); 0 for skidpad and
+/// acceleration (their usual layouts) and for a track that cannot be made (the run says why).
+double scenario_lap_length_m(const std::filesystem::path& scenario_file,
+                             const std::vector<std::string>& sets, unsigned long long seed);
 
 /// The length of a track file's centre line (a closed circuit's lap; 0 without one), for
 /// run_cost. Throws what tracks::read_track throws for an unreadable file.

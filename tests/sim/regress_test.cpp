@@ -9,6 +9,9 @@
 
 #include "core/error.hpp"
 #include "sim/json_text.hpp"
+#include "sim/run.hpp"
+#include "sim/scenario.hpp"
+#include "tracks/track.hpp"
 
 namespace conesim::sim {
 namespace {
@@ -356,6 +359,40 @@ TEST(Shard, SlicesAreBalancedByExpectedCost) {
             run_cost(core::EventType::kAcceleration, 0, false, 0, false) * 20);
   EXPECT_GT(run_cost(core::EventType::kAutocross, 600, false, 0, false),
             run_cost(core::EventType::kAutocross, 300, false, 0, false));
+}
+
+// a scenario's own circuit is priced by its length (generated from the run's seed, as
+// `conesim run --seed` makes it): a long circuit's trackdrive costs more than a short one's
+TEST(Shard, AScenariosOwnCircuitIsPricedByTheCircuitTheSeedMakes) {
+  const fs::path trackdrive = find_scenario("trackdrive");
+  std::vector<double> lengths;
+  for (unsigned long long seed : {1ull, 4ull, 9ull}) {
+    const double length = scenario_lap_length_m(trackdrive, {}, seed);
+    const tracks::Track made = scenario_track(load_scenario(trackdrive, {}, seed));
+    double expected = 0.0;
+    for (size_t i = 0; i < made.centre_line.size(); ++i)
+      expected += (made.centre_line[(i + 1) % made.centre_line.size()] - made.centre_line[i]).norm();
+    EXPECT_NEAR(length, expected, 1e-6) << "seed " << seed;
+    // FSG: a trackdrive lap is 200 m to 500 m
+    EXPECT_GT(length, 200.0);
+    EXPECT_LT(length, 500.0);
+    lengths.push_back(length);
+  }
+  // seeds 1 and 9 make circuits of 404 and 287 m: their costs differ as much
+  EXPECT_GT(std::abs(lengths[0] - lengths[2]), 50.0);
+  const Scenario s = load_scenario(trackdrive);
+  EXPECT_GT(scenario_run_cost(s, lengths[0], false) - kRunStartCost,
+            1.3 * (scenario_run_cost(s, lengths[2], false) - kRunStartCost));
+  // a fixed layout has no lap to measure; a track that cannot be made costs the usual lap
+  EXPECT_EQ(scenario_lap_length_m(find_scenario("skidpad"), {}, 1), 0.0);
+  EXPECT_EQ(scenario_lap_length_m(trackdrive, {"track.file=/nonexistent/track.yaml"}, 1), 0.0);
+  // exploring all the way costs more per metre than ten laps of which nine are fast; the plot
+  // of every run is priced
+  EXPECT_GT(run_cost(core::EventType::kAutocross, 300, false, 0, false),
+            1.5 * run_cost(core::EventType::kTrackdrive, 300, false, 0, false, 1));
+  EXPECT_NEAR(run_cost(core::EventType::kAcceleration, 0, false, 0, false, 0, true) -
+                  run_cost(core::EventType::kAcceleration, 0, false, 0, false, 0, false),
+              kRunPlotCost, 1e-3);
 }
 
 // a folder as `conesim regress --shard I/N` leaves it: plan.json (the whole list) and, unless the
