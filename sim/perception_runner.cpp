@@ -4,8 +4,10 @@
 #include <cmath>
 #include <map>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 
+#include "core/clutter.hpp"
 #include "sdk/builtin/lidar_frontend.hpp"
 #include "sensors/lidar_config.hpp"
 
@@ -19,17 +21,25 @@ constexpr double kScoreRangeM = 30.0;
 // a cone that returned fewer points than this is beyond what a cone detector can find
 constexpr int kMinReturns = 3;
 
-// the true cone a LiDAR cluster stands for: the label most of its points carry (-1 when most
-// points are ground or no cone has a majority)
-int cluster_label(const slam::frontend::LidarCone& cone, const core::PointCloudLabels& labels) {
+// the label more than half of a LiDAR cluster's points carry (a cone id, the ground or a
+// clutter class), nullopt when none has a majority
+std::optional<int> majority_label(const slam::frontend::LidarCone& cone,
+                                  const core::PointCloudLabels& labels) {
   std::map<int, int> votes;
   for (int i : cone.point_indices) ++votes[labels.cone_id[static_cast<size_t>(i)]];
   int best = core::ObservationLabels::kFalsePositive;
   int best_votes = 0;
   for (const auto& [id, n] : votes)
     if (n > best_votes) best = id, best_votes = n;
-  if (2 * best_votes <= static_cast<int>(cone.point_indices.size())) return -1;
-  return best >= 0 ? best : core::ObservationLabels::kFalsePositive;
+  if (2 * best_votes <= static_cast<int>(cone.point_indices.size())) return std::nullopt;
+  return best;
+}
+
+// the true cone a LiDAR cluster stands for: the label most of its points carry (-1 when most
+// points are ground or clutter, or no cone has a majority)
+int cluster_label(const slam::frontend::LidarCone& cone, const core::PointCloudLabels& labels) {
+  const std::optional<int> best = majority_label(cone, labels);
+  return best && *best >= 0 ? *best : core::ObservationLabels::kFalsePositive;
 }
 
 }  // namespace
@@ -109,6 +119,7 @@ PerceptionRunner::PerceptionRunner(const Scenario& s, const tracks::Track& track
     : track_(track), mode_(s.perception), tracker_(slam::frontend::TrackerConfig{}) {
   lidar_xy_ = lidar_mount.position.head<2>();
   lidar_mount_ = lidar_mount;
+  score_clutter_ = s.clutter.objects_per_100m > 0.0;
   if (s.perception_plugin) {
     // a plug-in in place of the detectors: given the sensors the scenario names, scored on
     // what it delivers (against the cones around the LiDAR, or in the camera's view)
@@ -196,6 +207,14 @@ DeliveredDetections PerceptionRunner::on_lidar(const sensors::LidarScan& scan,
   for (const TrueConeInView& c : truth)
     if (returns[static_cast<size_t>(c.id)] >= kMinReturns) returned.push_back(c);
   lidar_returned_score_->add_frame(raw, returned);
+  // with scenery, the detections whose points lie mostly on a clutter object, by its class
+  if (score_clutter_) {
+    lidar_detections_ += static_cast<int64_t>(detections.cones.size());
+    for (const auto& cone : detections.cones)
+      if (const std::optional<int> label = majority_label(cone, scan.labels))
+        if (const auto cls = core::clutter_of_label(*label))
+          ++clutter_detections_[static_cast<size_t>(*cls)];
+  }
 
   // fused: colours from the latest stereo pair, moved into this sweep's frame by the odometry
   core::ConeObservations frame = raw;
@@ -343,6 +362,20 @@ nlohmann::json PerceptionRunner::metrics() const {
   m["mode"] = mode_;
   if (lidar_score_) m["lidar"] = lidar_score_->metrics();
   if (lidar_returned_score_) m["lidar_returned_cones"] = lidar_returned_score_->metrics();
+  if (score_clutter_ && lidar_score_) {
+    // what fooled the LiDAR detector: its detections on each clutter class, and the share of
+    // all its detections (the precision that class cost)
+    nlohmann::json by_class = nlohmann::json::object();
+    for (core::ClutterClass c : core::kClutterClasses) {
+      const int64_t n = clutter_detections_[static_cast<size_t>(c)];
+      by_class[std::string(core::to_string(c))] = {
+          {"detections", n},
+          {"share_of_detections",
+           lidar_detections_ > 0 ? static_cast<double>(n) / static_cast<double>(lidar_detections_)
+                                 : 0.0}};
+    }
+    m["lidar_clutter"] = {{"detections", lidar_detections_}, {"by_class", by_class}};
+  }
   if (stereo_score_) m["stereo"] = stereo_score_->metrics();
   return m;
 }

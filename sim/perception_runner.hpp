@@ -4,6 +4,8 @@
 // the camera, the tracker gives stable ids, and each frame is scored against the labels (the
 // point labels of the sweep, the true cones in view) before it goes to SLAM and the driver.
 
+#include <array>
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -11,6 +13,7 @@
 #include <optional>
 #include <string>
 
+#include "core/clutter.hpp"
 #include "core/measurements.hpp"
 #include "sensors/lidar.hpp"
 #include "sim/autonomy.hpp"
@@ -173,6 +176,10 @@ class PerceptionRunner {
   // the LiDAR against only the cones its beams returned from (the detector's own share)
   std::unique_ptr<PerceptionScorer> lidar_returned_score_;
   std::unique_ptr<PerceptionScorer> stereo_score_;
+  // with scenery (world.clutter): the LiDAR's detections, and those on each clutter class
+  bool score_clutter_ = false;
+  int64_t lidar_detections_ = 0;
+  std::array<int64_t, core::kClutterClassCount> clutter_detections_{};
 };
 
 }  // namespace conesim::sim
