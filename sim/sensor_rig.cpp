@@ -68,7 +68,7 @@ void write_pcd(const fs::path& file, const core::PointCloud& cloud,
   std::string text;
   text.reserve(cloud.points.size() * 48 + 256);
   const size_t n = cloud.points.size();
-  text += "# .PCD v0.7 - conesim LiDAR sweep (label: true cone id, -1 ground)\n";
+  text += "# .PCD v0.7 - conesim LiDAR sweep (label: true cone id, -1 ground, -2 and below clutter)\n";
   text += "VERSION 0.7\nFIELDS x y z intensity ring time label\n";
   text += "SIZE 4 4 4 4 2 4 4\nTYPE F F F F U F I\nCOUNT 1 1 1 1 1 1 1\n";
   text += "WIDTH " + std::to_string(n) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\n";
