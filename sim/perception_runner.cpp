@@ -20,6 +20,9 @@ constexpr double kScoreBandM = 5.0;
 constexpr double kScoreRangeM = 30.0;
 // a cone that returned fewer points than this is beyond what a cone detector can find
 constexpr int kMinReturns = 3;
+// a camera's false detection this near an object's footprint is put down to the object (the
+// scorers' matching cutoff)
+constexpr double kClutterCutoffM = 1.0;
 
 // the label more than half of a LiDAR cluster's points carry (a cone id, the ground or a
 // clutter class), nullopt when none has a majority
@@ -40,6 +43,21 @@ std::optional<int> majority_label(const slam::frontend::LidarCone& cone,
 int cluster_label(const slam::frontend::LidarCone& cone, const core::PointCloudLabels& labels) {
   const std::optional<int> best = majority_label(cone, labels);
   return best && *best >= 0 ? *best : core::ObservationLabels::kFalsePositive;
+}
+
+// a detector's detections over the run and those that clutter caused, by class, each with its
+// share of all the detections (the precision that class cost)
+nlohmann::json clutter_json(int64_t detections,
+                            const std::array<int64_t, core::kClutterClassCount>& counts) {
+  nlohmann::json by_class = nlohmann::json::object();
+  for (core::ClutterClass c : core::kClutterClasses) {
+    const int64_t n = counts[static_cast<size_t>(c)];
+    by_class[std::string(core::to_string(c))] = {
+        {"detections", n},
+        {"share_of_detections",
+         detections > 0 ? static_cast<double>(n) / static_cast<double>(detections) : 0.0}};
+  }
+  return {{"detections", detections}, {"by_class", by_class}};
 }
 
 }  // namespace
@@ -278,7 +296,23 @@ std::optional<DeliveredDetections> PerceptionRunner::on_stereo(
     return std::any_of(partial.begin(), partial.end(),
                        [&o](const core::Vec2& p) { return (o.position - p).norm() < 1.0; });
   });
-  stereo_score_->add_frame(scored, truth);
+  const std::vector<int> stereo_matches = stereo_score_->add_frame(scored, truth);
+  // with scenery, each false detection within the scorer's range is put down to the clutter
+  // object it lies on (within the matching cutoff of the object's footprint), if any
+  if (score_clutter_)
+    for (size_t i = 0; i < scored.cones.size(); ++i) {
+      const core::Vec2 at = scored.cones[i].position;
+      if ((at - camera_xy).norm() > kScoreRangeM) continue;
+      ++stereo_detections_;
+      if (stereo_matches[i] >= 0) continue;
+      ++stereo_false_positives_;
+      const core::Vec2 in_track = true_pose.transform(at);
+      for (const tracks::SceneryObject& o : scenery_)
+        if ((in_track - o.pose.position()).norm() <= o.radius_m + kClutterCutoffM) {
+          ++stereo_clutter_detections_[static_cast<size_t>(o.cls)];
+          break;
+        }
+    }
   if (mode_ == "fused") {
     latest_stereo_ = detections;
     return std::nullopt;
@@ -362,19 +396,12 @@ nlohmann::json PerceptionRunner::metrics() const {
   m["mode"] = mode_;
   if (lidar_score_) m["lidar"] = lidar_score_->metrics();
   if (lidar_returned_score_) m["lidar_returned_cones"] = lidar_returned_score_->metrics();
-  if (score_clutter_ && lidar_score_) {
-    // what fooled the LiDAR detector: its detections on each clutter class, and the share of
-    // all its detections (the precision that class cost)
-    nlohmann::json by_class = nlohmann::json::object();
-    for (core::ClutterClass c : core::kClutterClasses) {
-      const int64_t n = clutter_detections_[static_cast<size_t>(c)];
-      by_class[std::string(core::to_string(c))] = {
-          {"detections", n},
-          {"share_of_detections",
-           lidar_detections_ > 0 ? static_cast<double>(n) / static_cast<double>(lidar_detections_)
-                                 : 0.0}};
-    }
-    m["lidar_clutter"] = {{"detections", lidar_detections_}, {"by_class", by_class}};
+  // what fooled each detector: its detections on (LiDAR) or near (camera) each clutter class
+  if (score_clutter_ && lidar_score_)
+    m["lidar_clutter"] = clutter_json(lidar_detections_, clutter_detections_);
+  if (score_clutter_ && stereo_score_) {
+    m["stereo_clutter"] = clutter_json(stereo_detections_, stereo_clutter_detections_);
+    m["stereo_clutter"]["false_positives"] = stereo_false_positives_;
   }
   if (stereo_score_) m["stereo"] = stereo_score_->metrics();
   return m;

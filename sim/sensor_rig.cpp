@@ -406,6 +406,7 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
   if (raw_lidar || raw_camera || s.perception_plugin)
     perception_ = std::make_unique<PerceptionRunner>(
         s, track, lidar_ ? lidar_->config().mount : core::Pose3{});
+  if (perception_) perception_->set_scenery(scenery_);
 
   // the dump folders
   for (const std::string& name : dump_.sensors) {
