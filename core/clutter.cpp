@@ -6,7 +6,7 @@ namespace {
 
 // the names in enum order
 constexpr std::array<std::string_view, kClutterClassCount> kNames = {
-    "barrier", "fence", "tyre_stack", "tent", "person", "spare_cone", "lying_cone"};
+    "barrier", "fence", "tyre_stack", "tent", "person", "spare_cone", "lying_cone", "grass_edge"};
 
 }  // namespace
 

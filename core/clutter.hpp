@@ -18,17 +18,19 @@ enum class ClutterClass {
   kPerson,     // a standing person
   kSpareCone,  // a cone standing off the track (PacSim's `unknown`)
   kLyingCone,  // a cone lying on its side off the track
+  kGrassEdge,  // a strip of grass 6 cm above the asphalt: the step where the paved area ends
 };
 
-inline constexpr int kClutterClassCount = 7;
+inline constexpr int kClutterClassCount = 8;
 
 /// All classes, in enum order.
 inline constexpr std::array<ClutterClass, kClutterClassCount> kClutterClasses = {
-    ClutterClass::kBarrier, ClutterClass::kFence,     ClutterClass::kTyreStack, ClutterClass::kTent,
-    ClutterClass::kPerson,  ClutterClass::kSpareCone, ClutterClass::kLyingCone};
+    ClutterClass::kBarrier,   ClutterClass::kFence,    ClutterClass::kTyreStack,
+    ClutterClass::kTent,      ClutterClass::kPerson,   ClutterClass::kSpareCone,
+    ClutterClass::kLyingCone, ClutterClass::kGrassEdge};
 
 /// The class's name in files and metrics: barrier, fence, tyre_stack, tent, person, spare_cone,
-/// lying_cone.
+/// lying_cone, grass_edge.
 std::string_view to_string(ClutterClass c);
 
 /// The label of a LiDAR point on an object of this class (-2, -3, ...).

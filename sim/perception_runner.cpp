@@ -137,7 +137,7 @@ PerceptionRunner::PerceptionRunner(const Scenario& s, const tracks::Track& track
     : track_(track), mode_(s.perception), tracker_(slam::frontend::TrackerConfig{}) {
   lidar_xy_ = lidar_mount.position.head<2>();
   lidar_mount_ = lidar_mount;
-  score_clutter_ = s.clutter.objects_per_100m > 0.0;
+  score_clutter_ = s.clutter.objects_per_100m > 0.0 || s.clutter.grass_edge;
   if (s.perception_plugin) {
     // a plug-in in place of the detectors: given the sensors the scenario names, scored on
     // what it delivers (against the cones around the LiDAR, or in the camera's view)

@@ -1025,9 +1025,13 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                                              {number("objects_per_100m", cl.objects_per_100m, c),
                                               number("margin_m", cl.margin_m, c),
                                               number("spread_m", cl.spread_m, c),
-                                              {"seed_offset", [&](const YAML::Node& x) {
+                                              {"seed_offset",
+                                               [&](const YAML::Node& x) {
                                                  cl.seed_offset =
                                                      read_integer<uint64_t>(x, c, "seed_offset");
+                                               }},
+                                              {"grass_edge", [&](const YAML::Node& x) {
+                                                 cl.grass_edge = read_bool(x, c, "grass_edge");
                                                }}});
                               }}});
        }},

@@ -26,9 +26,14 @@ constexpr int kAttempts = 60;
 constexpr double kObjectGapM = 0.5;
 // at most this many objects, whatever the density and the length
 constexpr int kMaxObjects = 5000;
-// how often each class is drawn (ClutterClass order)
-constexpr std::array<double, core::kClutterClassCount> kClassWeight = {0.15, 0.10, 0.15, 0.08,
-                                                                       0.20, 0.20, 0.12};
+// how often each class of object is drawn (ClutterClass order; the grass edge is laid, not
+// drawn)
+constexpr int kDrawnClasses = 7;
+constexpr std::array<double, kDrawnClasses> kClassWeight = {0.15, 0.10, 0.15, 0.08,
+                                                            0.20, 0.20, 0.12};
+// the grass edge: strips this long, farther out in steps of this much until clear
+constexpr double kEdgeStripM = 4.0;
+constexpr double kEdgeStepM = 0.5;
 
 ScenePrimitive box(const Eigen::Vector3d& centre, const Eigen::Vector3d& half,
                    std::array<float, 4> rgba, double reflectivity) {
@@ -129,6 +134,11 @@ SceneryObject make_scenery_object(ClutterClass cls, const Pose2& pose, int varia
       o.parts.push_back(round_solid(Shape::kCylinder, {0.0, 0.0, 1.58}, 0.1, 0.1, 0.13,
                                     {0.85f, 0.68f, 0.55f, 1.f}, 0.35));
       break;
+    case ClutterClass::kGrassEdge:
+      // a 4 m strip of grass, 1 m wide, its top 6 cm above the asphalt
+      o.parts.push_back(
+          box({0.0, 0.0, 0.03}, {0.5 * kEdgeStripM, 0.5, 0.03}, {0.25f, 0.45f, 0.15f, 1.f}, 0.2));
+      break;
     case ClutterClass::kSpareCone:
     case ClutterClass::kLyingCone: {
       // a small cone's body (FSG 228 x 228 x 325 mm) in blue, yellow or orange, on its plate
@@ -184,7 +194,7 @@ std::vector<SceneryObject> place_scenery(const Track& track, const ClutterConfig
   if (const std::string e = config.validate(); !e.empty())
     throw std::invalid_argument("world.clutter." + e);
   std::vector<SceneryObject> out;
-  if (config.objects_per_100m <= 0.0) return out;
+  if (config.objects_per_100m <= 0.0 && !config.grass_edge) return out;
 
   // the driving line, its length and its points by arc length
   std::vector<Vec2> line = track.centre_line;
@@ -196,8 +206,10 @@ std::vector<SceneryObject> place_scenery(const Track& track, const ClutterConfig
   for (size_t i = 1; i < line.size(); ++i) arc[i] = arc[i - 1] + (line[i] - line[i - 1]).norm();
   const double length = arc.back();
   if (!(length > 0.0)) return out;
-  const int count = static_cast<int>(
-      std::min<double>(kMaxObjects, std::round(config.objects_per_100m * length / 100.0)));
+  const int count = config.objects_per_100m <= 0.0
+                        ? 0
+                        : static_cast<int>(std::min<double>(
+                              kMaxObjects, std::round(config.objects_per_100m * length / 100.0)));
 
   // what an object keeps clear of: the area between the lanes and their polylines, every cone,
   // the driving line and the start
@@ -212,6 +224,30 @@ std::vector<SceneryObject> place_scenery(const Track& track, const ClutterConfig
   std::vector<Vec2> placed_at;
   std::vector<double> placed_radius;
 
+  // the place on the driving line at arc length s and the line's direction there
+  const auto on_line = [&line, &arc](double s, Vec2& tangent) {
+    const size_t seg = static_cast<size_t>(
+        std::clamp<std::ptrdiff_t>(std::upper_bound(arc.begin(), arc.end(), s) - arc.begin() - 1, 0,
+                                   static_cast<std::ptrdiff_t>(line.size()) - 2));
+    const double seg_len = std::max(1e-9, arc[seg + 1] - arc[seg]);
+    tangent = (line[seg + 1] - line[seg]) / seg_len;
+    return Vec2(line[seg] + (s - arc[seg]) * tangent);
+  };
+  // whether p keeps `clear` from the lanes, the cones and the driving line, and more from the
+  // start
+  const auto clear_of_track = [&](const Vec2& p, double clear) {
+    if (!area.empty()) {
+      if (area.contains(p)) return false;
+      const auto nearest = area.nearest_boundary(p);
+      if (nearest && nearest->distance_m < clear) return false;
+    }
+    const size_t near_cone = cones.nearest(p, [](size_t) { return true; });
+    if (near_cone != PointIndex::kNone && (cone_points[near_cone] - p).norm() < clear + cone_reach)
+      return false;
+    if (std::sqrt(driving.nearest(p).distance2) < clear) return false;
+    return (p - track.start.position()).norm() >= clear + 3.0;
+  };
+
   core::Rng rng(
       core::derive_seed(core::derive_seed(scenario_seed, kSceneryStream), config.seed_offset));
   double total_weight = 0.0;
@@ -220,7 +256,7 @@ std::vector<SceneryObject> place_scenery(const Track& track, const ClutterConfig
     // the class and its look, then places until one is clear
     double pick = core::uniform(rng, 0.0, total_weight);
     int k = 0;
-    while (k + 1 < core::kClutterClassCount && pick >= kClassWeight[static_cast<size_t>(k)])
+    while (k + 1 < kDrawnClasses && pick >= kClassWeight[static_cast<size_t>(k)])
       pick -= kClassWeight[static_cast<size_t>(k++)];
     const auto cls = static_cast<ClutterClass>(k);
     const int variant = static_cast<int>(core::uniform_int(rng, 0, 2));
@@ -233,27 +269,12 @@ std::vector<SceneryObject> place_scenery(const Track& track, const ClutterConfig
       const double out_m = clear + core::uniform(rng, 0.0, config.spread_m);
       const double yaw_jitter = core::uniform(rng, -0.3, 0.3);
       const double free_yaw = core::uniform(rng, -std::numbers::pi, std::numbers::pi);
-      const size_t seg = static_cast<size_t>(
-          std::clamp<std::ptrdiff_t>(std::upper_bound(arc.begin(), arc.end(), s) - arc.begin() - 1,
-                                     0, static_cast<std::ptrdiff_t>(line.size()) - 2));
-      const Vec2 a = line[seg], b = line[seg + 1];
-      const double seg_len = std::max(1e-9, arc[seg + 1] - arc[seg]);
-      const Vec2 tangent = (b - a) / seg_len;
-      const Vec2 normal(-tangent.y(), tangent.x());
-      const Vec2 p = a + (s - arc[seg]) * tangent + side * out_m * normal;
+      Vec2 tangent;
+      const Vec2 at = on_line(s, tangent);
+      const Vec2 p = at + side * out_m * Vec2(-tangent.y(), tangent.x());
 
-      // clear of the lanes, the cones, the driving line, the start and the other objects
-      if (!area.empty()) {
-        if (area.contains(p)) continue;
-        const auto nearest = area.nearest_boundary(p);
-        if (nearest && nearest->distance_m < clear) continue;
-      }
-      const size_t near_cone = cones.nearest(p, [](size_t) { return true; });
-      if (near_cone != PointIndex::kNone &&
-          (cone_points[near_cone] - p).norm() < clear + cone_reach)
-        continue;
-      if (std::sqrt(driving.nearest(p).distance2) < clear) continue;
-      if ((p - track.start.position()).norm() < clear + 3.0) continue;
+      // clear of the track and of the other objects
+      if (!clear_of_track(p, clear)) continue;
       bool overlaps = false;
       for (size_t j = 0; j < placed_at.size() && !overlaps; ++j)
         overlaps = (placed_at[j] - p).norm() < placed_radius[j] + shape.radius_m + kObjectGapM;
@@ -267,6 +288,26 @@ std::vector<SceneryObject> place_scenery(const Track& track, const ClutterConfig
       placed_radius.push_back(shape.radius_m);
       break;
     }
+  }
+
+  // the grass edge: strips along both sides of the driving line, each as near as it may lie
+  // (objects may stand on it)
+  if (config.grass_edge) {
+    const double clear =
+        config.margin_m + make_scenery_object(ClutterClass::kGrassEdge, Pose2{}).radius_m;
+    for (double s = 0.5 * kEdgeStripM; s < length; s += kEdgeStripM)
+      for (double side : {1.0, -1.0}) {
+        Vec2 tangent;
+        const Vec2 at = on_line(s, tangent);
+        const Vec2 normal = side * Vec2(-tangent.y(), tangent.x());
+        for (double out_m = clear; out_m <= clear + config.spread_m; out_m += kEdgeStepM) {
+          const Vec2 p = at + out_m * normal;
+          if (!clear_of_track(p, clear)) continue;
+          out.push_back(make_scenery_object(
+              ClutterClass::kGrassEdge, Pose2{p.x(), p.y(), std::atan2(tangent.y(), tangent.x())}));
+          break;
+        }
+      }
   }
   return out;
 }

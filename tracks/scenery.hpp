@@ -60,6 +60,9 @@ struct ClutterConfig {
   double spread_m = 12.0;
   /// Added to the scenario seed: another arrangement on the same layout and run.
   uint64_t seed_offset = 0;
+  /// Lays a grass edge: 4 m strips of grass 6 cm above the asphalt along both sides of the
+  /// driving line, each as near as the margin lets it (independent of the density).
+  bool grass_edge = false;
 
   /// Empty when valid, else "key: expected ...".
   std::string validate() const;
@@ -70,7 +73,8 @@ struct ClutterConfig {
 SceneryObject make_scenery_object(core::ClutterClass cls, const Pose2& pose, int variant = 0);
 
 /// The objects for a layout: round(objects_per_100m x length / 100) of them, fewer where no
-/// clear place is found. Deterministic for (track, config, seed); empty for a density of 0.
+/// clear place is found, then the grass edge's strips if asked. Deterministic for (track,
+/// config, seed); empty for a density of 0 without the grass edge.
 /// Throws std::invalid_argument for a config that fails validate().
 std::vector<SceneryObject> place_scenery(const Track& track, const ClutterConfig& config,
                                          uint64_t scenario_seed);

@@ -627,7 +627,7 @@ std::vector<tracks::SceneryObject> one_of_each() {
       {ClutterClass::kBarrier, {10.0, 5.0, 0.3}},   {ClutterClass::kFence, {2.0, 12.0, 0.0}},
       {ClutterClass::kTyreStack, {8.0, -5.0, 0.0}}, {ClutterClass::kTent, {-6.0, -7.0, 0.2}},
       {ClutterClass::kPerson, {-3.0, 4.0, 1.0}},    {ClutterClass::kSpareCone, {2.1, -4.0, 0.0}},
-      {ClutterClass::kLyingCone, {-1.9, 0.5, 0.7}}};
+      {ClutterClass::kLyingCone, {-1.9, 0.5, 0.7}}, {ClutterClass::kGrassEdge, {6.5, -7.0, 0.0}}};
   std::vector<tracks::SceneryObject> objects;
   for (const auto& [cls, pose] : placed) objects.push_back(tracks::make_scenery_object(cls, pose));
   return objects;

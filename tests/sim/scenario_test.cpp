@@ -117,8 +117,11 @@ TEST_F(ScenarioFile, OdometrySensorNoiseIsAScenarioKey) {
 TEST_F(ScenarioFile, ClutterDensityIsAScenarioKey) {
   const std::string head = "event: trackdrive\nperception: lidar\n";
   EXPECT_EQ(load_scenario(write(head)).clutter.objects_per_100m, 0.0);
+  EXPECT_FALSE(load_scenario(write(head)).clutter.grass_edge);
   const Scenario s = load_scenario(
-      write(head + "world: {clutter: {objects_per_100m: 2.5, margin_m: 4, seed_offset: 7}}\n"));
+      write(head + "world: {clutter: {objects_per_100m: 2.5, margin_m: 4, seed_offset: 7,\n"
+                   "  grass_edge: true}}\n"));
+  EXPECT_TRUE(s.clutter.grass_edge);
   EXPECT_DOUBLE_EQ(s.clutter.objects_per_100m, 2.5);
   EXPECT_DOUBLE_EQ(s.clutter.margin_m, 4.0);
   EXPECT_EQ(s.clutter.seed_offset, 7u);
@@ -130,7 +133,7 @@ TEST_F(ScenarioFile, ClutterDensityIsAScenarioKey) {
               HasSubstr("--set: world.clutter.margin_m: expected a number in [1, 50], got 0.2"));
   EXPECT_THAT(error_of(head + "world: {clutter: {density: 1}}\n"),
               HasSubstr("world.clutter.density: unknown key; expected one of: objects_per_100m, "
-                        "margin_m, spread_m, seed_offset"));
+                        "margin_m, spread_m, seed_offset, grass_edge"));
 }
 
 TEST_F(ScenarioFile, BadAblationsNameTheKeyAndWhatWasExpected) {

@@ -92,6 +92,27 @@ TEST(Scenery, GeneratedCircuitsKeepTheMargin) {
   }
 }
 
+// the grass edge lines both sides of generated circuits and shared layouts in 4 m strips (some
+// left out where a corner leaves no clear place within the spread), never within the margin
+TEST(Scenery, TheGrassEdgeLinesTheTrackOutsideTheMargin) {
+  ClutterConfig config;
+  config.grass_edge = true;
+  const std::filesystem::path data = CONESIM_TEST_DATA;
+  for (const Track& track :
+       {generate_circuit(1), generate_circuit(5), read_track(data / "tracks/pacsim/FSG19.yaml"),
+        read_track(data / "tracks/eufs/acceleration.csv")}) {
+    const std::vector<SceneryObject> strips = place_scenery(track, config, 1);
+    const double wanted = 2.0 * std::floor(length_of(driving_line(track)) / 4.0);
+    EXPECT_GE(static_cast<double>(strips.size()), 0.7 * wanted) << track.name;
+    EXPECT_LE(static_cast<double>(strips.size()), wanted + 2.0) << track.name;
+    for (const SceneryObject& o : strips) EXPECT_EQ(o.cls, ClutterClass::kGrassEdge);
+    // each strip keeps its bounding circle clear: its long side lies nearer than that
+    ASSERT_FALSE(strips.empty());
+    EXPECT_LT(expect_clear(track, config, strips), config.margin_m + strips.front().radius_m)
+        << track.name;
+  }
+}
+
 TEST(Scenery, SharedLayoutsKeepTheMargin) {
   ClutterConfig config;
   config.objects_per_100m = 4.0;
@@ -135,7 +156,9 @@ TEST(Scenery, EveryClassIsPlacedAndBoundedByItsRadius) {
     for (const Vec2& p : footprint_points(o))
       EXPECT_LE((p - o.pose.position()).norm(), o.radius_m + 1e-9);
   }
-  EXPECT_EQ(seen.size(), static_cast<size_t>(core::kClutterClassCount));
+  // every class but the grass edge, which is laid only when asked
+  EXPECT_EQ(seen.size(), static_cast<size_t>(core::kClutterClassCount - 1));
+  EXPECT_FALSE(seen.count(ClutterClass::kGrassEdge));
 }
 
 TEST(Scenery, ValidateNamesTheKeyAndTheRange) {
