@@ -61,7 +61,8 @@ struct PointCloud {
 };
 
 /// Ground truth of a sweep, index by index with PointCloud::points: the cone id each point hit
-/// (kGroundLabel for the ground).
+/// (kGroundLabel for the ground, core::clutter_label() of its class for a scenery object:
+/// -2 and below, never a cone id).
 struct PointCloudLabels {
   static constexpr int kGroundLabel = -1;
   std::vector<int> cone_id;

@@ -16,6 +16,23 @@ namespace {
 // largest distance between a vertex as authored and as MuJoCo stored it, after the fit
 constexpr double kMeshFitToleranceM = 1e-4;
 
+// appends a geom that is drawn only (no object of the model behind it), lit with `shine` as
+// its specular and shininess, and returns it
+mjvGeom* append_static_geom(mjvScene* scene, int type, const mjtNum size[3], const mjtNum pos[3],
+                            const mjtNum mat[9], const float rgba[4], float shine) {
+  mjvGeom* g = scene->geoms + scene->ngeom;
+  mjv_initGeom(g, type, size, pos, mat, rgba);
+  g->category = mjCAT_STATIC;
+  g->objtype = mjOBJ_UNKNOWN;
+  g->objid = -1;
+  g->segid = scene->ngeom;
+  g->specular = shine;
+  g->shininess = shine;
+  g->reflectance = 0.0f;
+  ++scene->ngeom;
+  return g;
+}
+
 // the rigid transform that maps the mesh as MuJoCo stores it onto the mesh as authored
 Eigen::Isometry3d stored_to_authored(const mjModel* m, int mesh_id,
                                      const vehicle_models::TriangleMesh& authored) {
@@ -108,20 +125,57 @@ int ConeSceneWriter::append(mjvScene* scene, const IsKnocked& is_knocked,
       pos[i] = base[i] + model.mesh_position[i];
       for (int j = 0; j < 3; ++j) mat[3 * i + j] = model.mesh_rotation(i, j);
     }
-    mjvGeom* g = scene->geoms + scene->ngeom;
-    mjv_initGeom(g, mjGEOM_MESH, size, pos, mat, kWhite);
+    mjvGeom* g = append_static_geom(scene, mjGEOM_MESH, size, pos, mat, kWhite, 0.2f);
     // MuJoCo 2.2 numbers mesh display lists in pairs (mesh, convex hull): 2 x mesh id
     g->dataid = 2 * model.mesh_id;
     g->texid = model.texture_id;
     g->texcoord = 1;
-    g->category = mjCAT_STATIC;
-    g->objtype = mjOBJ_UNKNOWN;
-    g->objid = -1;
-    g->segid = scene->ngeom;
-    g->specular = 0.2f;
-    g->shininess = 0.2f;
-    g->reflectance = 0.0f;
-    ++scene->ngeom;
+  }
+  return dropped;
+}
+
+int scenery_geom_count(const std::vector<tracks::SceneryObject>& scenery) {
+  int n = 0;
+  for (const tracks::SceneryObject& o : scenery) n += static_cast<int>(o.parts.size());
+  return n;
+}
+
+int append_scenery(mjvScene* scene, const std::vector<tracks::SceneryObject>& scenery,
+                   const ViewVolume& view) {
+  int dropped = 0;
+  for (const tracks::SceneryObject& object : scenery) {
+    const Eigen::Vector3d base(object.pose.x, object.pose.y, 0.0);
+    const double half_height = 0.5 * object.height_m;
+    if (!view.may_see(base + Eigen::Vector3d(0.0, 0.0, half_height),
+                      std::hypot(object.radius_m, half_height)))
+      continue;
+    const Eigen::Matrix3d turn =
+        Eigen::AngleAxisd(object.pose.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    for (const tracks::ScenePrimitive& p : object.parts) {
+      if (scene->ngeom >= scene->maxgeom) {
+        ++dropped;
+        continue;
+      }
+      const Eigen::Vector3d centre = base + turn * p.centre;
+      const Eigen::Matrix3d axes = turn * p.rotation;
+      mjtNum size[3], pos[3], mat[9];
+      for (int i = 0; i < 3; ++i) {
+        pos[i] = centre[i];
+        for (int j = 0; j < 3; ++j) mat[3 * i + j] = axes(i, j);
+      }
+      int type = mjGEOM_BOX;
+      if (p.shape == tracks::ScenePrimitive::Shape::kBox) {
+        for (int i = 0; i < 3; ++i) size[i] = p.size[i];
+      } else {
+        // MuJoCo's cylinder: radius, half length along its z axis
+        type = mjGEOM_CYLINDER;
+        const bool frustum = p.shape == tracks::ScenePrimitive::Shape::kFrustum;
+        size[0] = frustum ? 0.5 * (p.size.x() + p.size.y()) : p.size.x();
+        size[1] = p.size.z();
+        size[2] = 0.0;
+      }
+      append_static_geom(scene, type, size, pos, mat, p.rgba.data(), 0.1f);
+    }
   }
   return dropped;
 }

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/cone.hpp"
+#include "tracks/scenery.hpp"
 #include "tracks/track.hpp"
 
 namespace conesim::sensors {
@@ -64,5 +65,14 @@ class ConeSceneWriter {
   std::vector<tracks::Cone> cones_;
   std::array<ConeModel, 5> models_;
 };
+
+/// Number of scene geoms the scenery objects need (one per solid).
+int scenery_geom_count(const std::vector<tracks::SceneryObject>& scenery);
+
+/// Appends the solids of every scenery object the view volume may contain, as plain coloured
+/// boxes and cylinders (a frustum as the cylinder of its mean radius). They are drawn only: the
+/// physics model never holds them. Returns the number of solids that did not fit in the scene.
+int append_scenery(mjvScene* scene, const std::vector<tracks::SceneryObject>& scenery,
+                   const ViewVolume& view);
 
 }  // namespace conesim::sensors

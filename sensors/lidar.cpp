@@ -12,6 +12,8 @@
 #include <string>
 #include <unordered_map>
 
+#include "sensors/scenery_mesh.hpp"
+
 namespace conesim::sensors {
 
 namespace {
@@ -201,9 +203,11 @@ struct Lidar::Impl {
     float cos_elevation;
     float sin_elevation;
   };
-  // a cone of the track: its class's mesh, its place, its footprint and its label
+  // a cone of the track or a scenery object: its mesh (a cone class's or the object's own, an
+  // index into scenes), its place, its footprint and the label its points carry (the cone id,
+  // or the object's clutter label)
   struct SceneCone {
-    int cone_id = 0;
+    int label = 0;
     int cls = 0;
     float x = 0.f, y = 0.f;
     // every point of the cone lies within this horizontal distance of (x, y), and below top_m
@@ -214,8 +218,9 @@ struct Lidar::Impl {
 
   LidarConfig config;
   RTCDevice device = nullptr;
-  // one scene per cone class, holding its mesh in the cone's own frame
-  std::array<RTCScene, kClassCount> class_scenes{};
+  // one scene per cone class, holding its mesh in the cone's own frame, then one per scenery
+  // object (its mesh about its place)
+  std::vector<RTCScene> class_scenes;
   std::vector<Channel> channels;
   // the same, one array per term, for the loops over a column's rays
   std::vector<float> channel_cos, channel_sin;
@@ -223,8 +228,8 @@ struct Lidar::Impl {
   std::vector<float> column_sin;
   std::vector<core::TimeUs> column_offset_us;
   std::array<float, kSurfaceMaterialCount> reflectivity{};
-  // reflectivity of each triangle of each class's mesh
-  std::array<std::vector<float>, kClassCount> class_reflectivity;
+  // reflectivity of each triangle of each scene's mesh
+  std::vector<std::vector<float>> class_reflectivity;
   std::vector<SceneCone> cones;
   std::unordered_map<int, int> cone_index;
   // the ground (the plane z = 0 over a rectangle) and the height above which nothing stands,
@@ -265,7 +270,7 @@ struct Lidar::Impl {
   };
 
   void build_beams();
-  void build_scene(const tracks::Track& track);
+  void build_scene(const tracks::Track& track, const std::vector<tracks::SceneryObject>& scenery);
   void throw_on_device_error(const char* what) const;
   float intensity_of(float reflectivity_of_surface, float cos_incidence, float range) const;
   float cast_column(ChunkRays& rays, int first, const Eigen::Vector3f& origin,
@@ -325,7 +330,7 @@ void Lidar::Impl::hit_cone(const SceneCone& cone, const Eigen::Vector3f& origin,
   const Eigen::Vector3f dir(ray.ray.dir_x, ray.ray.dir_y, ray.ray.dir_z);
   const float cos_incidence = std::abs(dir.dot(normal)) / normal.norm();
   reach = ray.ray.tfar;
-  rays.label[slot] = cone.cone_id;
+  rays.label[slot] = cone.label;
   rays.range[slot] = ray.ray.tfar;
   rays.intensity[slot] =
       intensity_of(class_reflectivity[cone.cls][ray.hit.primID], cos_incidence, ray.ray.tfar);
@@ -369,7 +374,8 @@ void Lidar::Impl::build_beams() {
   ray_bounds.ground_scale = 255.f * reflectivity[static_cast<int>(SurfaceMaterial::kGround)];
 }
 
-void Lidar::Impl::build_scene(const tracks::Track& track) {
+void Lidar::Impl::build_scene(const tracks::Track& track,
+                              const std::vector<tracks::SceneryObject>& scenery) {
   device = rtcNewDevice("threads=1");
   if (!device) throw std::runtime_error("lidar: Embree device could not be created");
 
@@ -378,6 +384,11 @@ void Lidar::Impl::build_scene(const tracks::Track& track) {
   for (const tracks::Cone& cone : track.cones) {
     lo = lo.cwiseMin(cone.position);
     hi = hi.cwiseMax(cone.position);
+  }
+  for (const tracks::SceneryObject& object : scenery) {
+    const Eigen::Vector2d reach = Eigen::Vector2d::Constant(object.radius_m);
+    lo = lo.cwiseMin(object.pose.position() - reach);
+    hi = hi.cwiseMax(object.pose.position() + reach);
   }
   const double margin = config.max_range_m + kGroundMarginM;
   lo.array() -= margin;
@@ -389,6 +400,8 @@ void Lidar::Impl::build_scene(const tracks::Track& track) {
 
   // one scene per class, built once at high quality, its materials shared by its cones
   std::array<float, kClassCount> footprint{};
+  class_scenes.assign(kClassCount, nullptr);
+  class_reflectivity.resize(kClassCount);
   for (int k = 0; k < kClassCount; ++k) {
     const ConeShape shape = cone_shape(static_cast<core::ConeClass>(k));
     const ConeMesh mesh = build_cone_mesh(shape, config.cone_mesh_sides);
@@ -414,6 +427,30 @@ void Lidar::Impl::build_scene(const tracks::Track& track) {
     cones.push_back({cone.id, k, x, y, footprint[k], top, true});
     ray_bounds.top_z = std::max(ray_bounds.top_z, top);
   }
+
+  // every scenery object: a scene of its own holding its mesh about its place, labelled by its
+  // class (never a cone id)
+  for (const tracks::SceneryObject& object : scenery) {
+    const SceneryMesh mesh = build_scenery_mesh(object, config.cone_mesh_sides);
+    const int k = static_cast<int>(class_scenes.size());
+    float reach = 0.f, top = 0.f;
+    for (const Eigen::Vector3f& v : mesh.vertices) {
+      reach = std::max(reach, v.head<2>().norm());
+      top = std::max(top, v.z());
+    }
+    class_reflectivity.emplace_back();
+    for (float r : mesh.reflectivity) class_reflectivity.back().push_back(r);
+    class_scenes.push_back(rtcNewScene(device));
+    rtcSetSceneBuildQuality(class_scenes.back(), RTC_BUILD_QUALITY_HIGH);
+    RTCGeometry geom = make_triangle_geometry(device, mesh.vertices, mesh.triangles);
+    rtcAttachGeometry(class_scenes.back(), geom);
+    rtcReleaseGeometry(geom);
+    rtcCommitScene(class_scenes.back());
+    cones.push_back({core::clutter_label(object.cls), k, static_cast<float>(object.pose.x),
+                     static_cast<float>(object.pose.y), reach, top + static_cast<float>(kTopSlackM),
+                     true});
+    ray_bounds.top_z = std::max(ray_bounds.top_z, top + static_cast<float>(kTopSlackM));
+  }
   throw_on_device_error("building the scene");
 }
 
@@ -424,13 +461,14 @@ void Lidar::Impl::throw_on_device_error(const char* what) const {
                              std::to_string(static_cast<int>(error)) + " while " + what);
 }
 
-Lidar::Lidar(const LidarConfig& config, const tracks::Track& track)
+Lidar::Lidar(const LidarConfig& config, const tracks::Track& track,
+             const std::vector<tracks::SceneryObject>& scenery)
     : impl_(std::make_unique<Impl>()) {
   if (const std::string error = config.validate(); !error.empty())
     throw std::invalid_argument("lidar: " + error);
   impl_->config = config;
   impl_->build_beams();
-  impl_->build_scene(track);
+  impl_->build_scene(track, scenery);
 }
 
 Lidar::~Lidar() = default;

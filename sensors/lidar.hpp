@@ -21,6 +21,7 @@
 #include "core/time.hpp"
 #include "sensors/lidar_config.hpp"
 #include "sensors/pose_history.hpp"
+#include "tracks/scenery.hpp"
 #include "tracks/track.hpp"
 
 namespace conesim::sensors {
@@ -64,10 +65,12 @@ struct LidarNoise {
 /// sweep() may run on several threads at once, but not at the same time as set_cone_present().
 class Lidar {
  public:
-  /// Builds the scene: a ground rectangle covering the track and every cone at its true size.
-  /// Throws std::invalid_argument for a configuration that fails validate() and
-  /// std::runtime_error when Embree cannot start.
-  Lidar(const LidarConfig& config, const tracks::Track& track);
+  /// Builds the scene: a ground rectangle covering the track and every cone at its true size,
+  /// and the scenery objects (tracks/scenery.hpp), whose points carry their class's clutter
+  /// label (core/clutter.hpp), never a cone id. Throws std::invalid_argument for a
+  /// configuration that fails validate() and std::runtime_error when Embree cannot start.
+  Lidar(const LidarConfig& config, const tracks::Track& track,
+        const std::vector<tracks::SceneryObject>& scenery = {});
   ~Lidar();
   Lidar(Lidar&&) noexcept;
   Lidar& operator=(Lidar&&) noexcept;

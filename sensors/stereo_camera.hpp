@@ -60,7 +60,9 @@ class StereoCamera {
   /// Sets up rendering of `model` (built by vehicle_models::build_mjcf, which adds the cone
   /// meshes) with the cones of `track`. Throws std::invalid_argument for a bad configuration or
   /// an image larger than the model's offscreen buffer, std::runtime_error when GL fails.
-  StereoCamera(const StereoCameraConfig& config, const mjModel* model, const tracks::Track& track);
+  /// The scenery objects (tracks/scenery.hpp) are drawn as well.
+  StereoCamera(const StereoCameraConfig& config, const mjModel* model, const tracks::Track& track,
+               const std::vector<tracks::SceneryObject>& scenery = {});
   ~StereoCamera();
   StereoCamera(const StereoCamera&) = delete;
   StereoCamera& operator=(const StereoCamera&) = delete;
@@ -99,6 +101,7 @@ class StereoCamera {
   mjData* scratch_ = nullptr;
   std::unique_ptr<OsMesaContext> gl_;
   std::unique_ptr<ConeSceneWriter> cones_;
+  std::vector<tracks::SceneryObject> scenery_;
   mjvScene scene_;
   mjrContext context_;
   mjvOption option_;

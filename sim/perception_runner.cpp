@@ -4,8 +4,10 @@
 #include <cmath>
 #include <map>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 
+#include "core/clutter.hpp"
 #include "sdk/builtin/lidar_frontend.hpp"
 #include "sensors/lidar_config.hpp"
 
@@ -18,18 +20,44 @@ constexpr double kScoreBandM = 5.0;
 constexpr double kScoreRangeM = 30.0;
 // a cone that returned fewer points than this is beyond what a cone detector can find
 constexpr int kMinReturns = 3;
+// a camera's false detection this near an object's footprint is put down to the object (the
+// scorers' matching cutoff)
+constexpr double kClutterCutoffM = 1.0;
 
-// the true cone a LiDAR cluster stands for: the label most of its points carry (-1 when most
-// points are ground or no cone has a majority)
-int cluster_label(const slam::frontend::LidarCone& cone, const core::PointCloudLabels& labels) {
+// the label more than half of a LiDAR cluster's points carry (a cone id, the ground or a
+// clutter class), nullopt when none has a majority
+std::optional<int> majority_label(const slam::frontend::LidarCone& cone,
+                                  const core::PointCloudLabels& labels) {
   std::map<int, int> votes;
   for (int i : cone.point_indices) ++votes[labels.cone_id[static_cast<size_t>(i)]];
   int best = core::ObservationLabels::kFalsePositive;
   int best_votes = 0;
   for (const auto& [id, n] : votes)
     if (n > best_votes) best = id, best_votes = n;
-  if (2 * best_votes <= static_cast<int>(cone.point_indices.size())) return -1;
-  return best >= 0 ? best : core::ObservationLabels::kFalsePositive;
+  if (2 * best_votes <= static_cast<int>(cone.point_indices.size())) return std::nullopt;
+  return best;
+}
+
+// the true cone a LiDAR cluster stands for: the label most of its points carry (-1 when most
+// points are ground or clutter, or no cone has a majority)
+int cluster_label(const slam::frontend::LidarCone& cone, const core::PointCloudLabels& labels) {
+  const std::optional<int> best = majority_label(cone, labels);
+  return best && *best >= 0 ? *best : core::ObservationLabels::kFalsePositive;
+}
+
+// a detector's detections over the run and those that clutter caused, by class, each with its
+// share of all the detections (the precision that class cost)
+nlohmann::json clutter_json(int64_t detections,
+                            const std::array<int64_t, core::kClutterClassCount>& counts) {
+  nlohmann::json by_class = nlohmann::json::object();
+  for (core::ClutterClass c : core::kClutterClasses) {
+    const int64_t n = counts[static_cast<size_t>(c)];
+    by_class[std::string(core::to_string(c))] = {
+        {"detections", n},
+        {"share_of_detections",
+         detections > 0 ? static_cast<double>(n) / static_cast<double>(detections) : 0.0}};
+  }
+  return {{"detections", detections}, {"by_class", by_class}};
 }
 
 }  // namespace
@@ -109,6 +137,7 @@ PerceptionRunner::PerceptionRunner(const Scenario& s, const tracks::Track& track
     : track_(track), mode_(s.perception), tracker_(slam::frontend::TrackerConfig{}) {
   lidar_xy_ = lidar_mount.position.head<2>();
   lidar_mount_ = lidar_mount;
+  score_clutter_ = s.clutter.objects_per_100m > 0.0 || s.clutter.grass_edge;
   if (s.perception_plugin) {
     // a plug-in in place of the detectors: given the sensors the scenario names, scored on
     // what it delivers (against the cones around the LiDAR, or in the camera's view)
@@ -196,6 +225,14 @@ DeliveredDetections PerceptionRunner::on_lidar(const sensors::LidarScan& scan,
   for (const TrueConeInView& c : truth)
     if (returns[static_cast<size_t>(c.id)] >= kMinReturns) returned.push_back(c);
   lidar_returned_score_->add_frame(raw, returned);
+  // with scenery, the detections whose points lie mostly on a clutter object, by its class
+  if (score_clutter_) {
+    lidar_detections_ += static_cast<int64_t>(detections.cones.size());
+    for (const auto& cone : detections.cones)
+      if (const std::optional<int> label = majority_label(cone, scan.labels))
+        if (const auto cls = core::clutter_of_label(*label))
+          ++clutter_detections_[static_cast<size_t>(*cls)];
+  }
 
   // fused: colours from the latest stereo pair, moved into this sweep's frame by the odometry
   core::ConeObservations frame = raw;
@@ -259,7 +296,23 @@ std::optional<DeliveredDetections> PerceptionRunner::on_stereo(
     return std::any_of(partial.begin(), partial.end(),
                        [&o](const core::Vec2& p) { return (o.position - p).norm() < 1.0; });
   });
-  stereo_score_->add_frame(scored, truth);
+  const std::vector<int> stereo_matches = stereo_score_->add_frame(scored, truth);
+  // with scenery, each false detection within the scorer's range is put down to the clutter
+  // object it lies on (within the matching cutoff of the object's footprint), if any
+  if (score_clutter_)
+    for (size_t i = 0; i < scored.cones.size(); ++i) {
+      const core::Vec2 at = scored.cones[i].position;
+      if ((at - camera_xy).norm() > kScoreRangeM) continue;
+      ++stereo_detections_;
+      if (stereo_matches[i] >= 0) continue;
+      ++stereo_false_positives_;
+      const core::Vec2 in_track = true_pose.transform(at);
+      for (const tracks::SceneryObject& o : scenery_)
+        if ((in_track - o.pose.position()).norm() <= o.radius_m + kClutterCutoffM) {
+          ++stereo_clutter_detections_[static_cast<size_t>(o.cls)];
+          break;
+        }
+    }
   if (mode_ == "fused") {
     latest_stereo_ = detections;
     return std::nullopt;
@@ -343,6 +396,13 @@ nlohmann::json PerceptionRunner::metrics() const {
   m["mode"] = mode_;
   if (lidar_score_) m["lidar"] = lidar_score_->metrics();
   if (lidar_returned_score_) m["lidar_returned_cones"] = lidar_returned_score_->metrics();
+  // what fooled each detector: its detections on (LiDAR) or near (camera) each clutter class
+  if (score_clutter_ && lidar_score_)
+    m["lidar_clutter"] = clutter_json(lidar_detections_, clutter_detections_);
+  if (score_clutter_ && stereo_score_) {
+    m["stereo_clutter"] = clutter_json(stereo_detections_, stereo_clutter_detections_);
+    m["stereo_clutter"]["false_positives"] = stereo_false_positives_;
+  }
   if (stereo_score_) m["stereo"] = stereo_score_->metrics();
   return m;
 }

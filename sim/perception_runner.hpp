@@ -4,13 +4,17 @@
 // the camera, the tracker gives stable ids, and each frame is scored against the labels (the
 // point labels of the sweep, the true cones in view) before it goes to SLAM and the driver.
 
+#include <array>
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <vector>
 
+#include "core/clutter.hpp"
 #include "core/measurements.hpp"
 #include "sensors/lidar.hpp"
 #include "sim/autonomy.hpp"
@@ -20,6 +24,7 @@
 #include "slam/frontend/fusion.hpp"
 #include "slam/frontend/lidar_cone_detector.hpp"
 #include "slam/frontend/stereo_cone_detector.hpp"
+#include "tracks/scenery.hpp"
 #include "tracks/track.hpp"
 
 namespace conesim::sim {
@@ -128,6 +133,10 @@ class PerceptionRunner {
   /// figures under `lidar` and `stereo` when both run.
   nlohmann::json metrics() const;
 
+  /// The scenery beside the track (world.clutter): the camera's false detections near an
+  /// object are put down to its class.
+  void set_scenery(const std::vector<tracks::SceneryObject>& scenery) { scenery_ = scenery; }
+
   ~PerceptionRunner();
 
   /// The range-band figure (recall, precision, colour, RMSE per 5 m band) as a PNG.
@@ -173,6 +182,16 @@ class PerceptionRunner {
   // the LiDAR against only the cones its beams returned from (the detector's own share)
   std::unique_ptr<PerceptionScorer> lidar_returned_score_;
   std::unique_ptr<PerceptionScorer> stereo_score_;
+  // with scenery (world.clutter): the LiDAR's detections, and those on each clutter class
+  bool score_clutter_ = false;
+  int64_t lidar_detections_ = 0;
+  std::array<int64_t, core::kClutterClassCount> clutter_detections_{};
+  // the camera's detections within the scorer's range, its false ones, and those near each
+  // clutter class
+  int64_t stereo_detections_ = 0;
+  int64_t stereo_false_positives_ = 0;
+  std::array<int64_t, core::kClutterClassCount> stereo_clutter_detections_{};
+  std::vector<tracks::SceneryObject> scenery_;
 };
 
 }  // namespace conesim::sim

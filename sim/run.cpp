@@ -1003,6 +1003,18 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
                               slam ? slam->frames_out_of_order() : 0);
     m["sensors"]["lidar_sweeps_lost"] = rig.stats().lidar_sweeps_lost;
   }
+  // the scenery beside the track (a run without clutter has no such key)
+  if (!rig.scenery().empty()) {
+    nlohmann::json by_class = nlohmann::json::object();
+    for (core::ClutterClass c : core::kClutterClasses)
+      by_class[std::string(core::to_string(c))] = 0;
+    for (const tracks::SceneryObject& o : rig.scenery())
+      by_class[std::string(core::to_string(o.cls))] =
+          by_class[std::string(core::to_string(o.cls))].get<int>() + 1;
+    m["world"] = {{"clutter_objects", rig.scenery().size()},
+                  {"clutter_objects_per_100m", s.clutter.objects_per_100m},
+                  {"clutter_by_class", by_class}};
+  }
   // the plug-ins in the loop, by name (a run of the built-in stack has no such key)
   if (s.perception_plugin || s.slam_plugin || s.driver_plugin) {
     auto name = [](const std::optional<PluginSpec>& p, const std::string& builtin) {

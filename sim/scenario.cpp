@@ -1015,6 +1015,26 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
          const Where w{&context, "referee"};
          read_section(n, w, referee_fields(s.referee, w));
        }},
+      {"world",
+       [&](const YAML::Node& n) {
+         const Where w{&context, "world"};
+         read_section(n, w, {{"clutter", [&](const YAML::Node& v) {
+                                const Where c{&context, "world.clutter"};
+                                auto& cl = s.clutter;
+                                read_section(v, c,
+                                             {number("objects_per_100m", cl.objects_per_100m, c),
+                                              number("margin_m", cl.margin_m, c),
+                                              number("spread_m", cl.spread_m, c),
+                                              {"seed_offset",
+                                               [&](const YAML::Node& x) {
+                                                 cl.seed_offset =
+                                                     read_integer<uint64_t>(x, c, "seed_offset");
+                                               }},
+                                              {"grass_edge", [&](const YAML::Node& x) {
+                                                 cl.grass_edge = read_bool(x, c, "grass_edge");
+                                               }}});
+                              }}});
+       }},
       {"sensors",
        [&](const YAML::Node& n) {
          const Where w{&context, "sensors"};
@@ -1291,6 +1311,10 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
     if (context.lines.count("name") || context.origin("name")) context.fail("name", e);
     throw InputError(fname, 0, "the file name gives the run folder's name: " + e);
   }
+
+  // the scenery's density and where it may stand
+  if (const std::string e = s.clutter.validate(); !e.empty())
+    context.fail_check("world.clutter", e);
 
   // the referee's rules, with the lap count the driver is given; times within what the sim
   // clock (integer microseconds) holds many times over

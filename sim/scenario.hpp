@@ -19,6 +19,7 @@
 #include "sim/referee.hpp"
 #include "slam/factory.hpp"
 #include "tracks/generator.hpp"
+#include "tracks/scenery.hpp"
 #include "vehicle_models/vehicle_params.hpp"
 
 namespace conesim::sim {
@@ -154,6 +155,9 @@ struct Scenario {
   /// The car stands still this long before the driver may go (the go signal), seconds; the
   /// odometry learns the gyro bias meanwhile.
   double start_delay_s = 1.0;
+  /// Scenery and clutter beside the track (`world.clutter`): seen by the LiDAR and the
+  /// camera, never by the physics. A density of 0 (the default) places nothing.
+  tracks::ClutterConfig clutter;
   /// Sensor and vehicle faults (`faults:`), in the order read: kinds in fault_kind_names()
   /// order, each kind's windows in the order given. Empty: none.
   std::vector<Fault> faults;

@@ -12,6 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/clutter.hpp"
 #include "core/cone.hpp"
 #include "sensors/png_writer.hpp"
 #include "sim/gnuplot.hpp"
@@ -67,7 +68,7 @@ void write_pcd(const fs::path& file, const core::PointCloud& cloud,
   std::string text;
   text.reserve(cloud.points.size() * 48 + 256);
   const size_t n = cloud.points.size();
-  text += "# .PCD v0.7 - conesim LiDAR sweep (label: true cone id, -1 ground)\n";
+  text += "# .PCD v0.7 - conesim LiDAR sweep (label: true cone id, -1 ground, -2 and below clutter)\n";
   text += "VERSION 0.7\nFIELDS x y z intensity ring time label\n";
   text += "SIZE 4 4 4 4 2 4 4\nTYPE F F F F U F I\nCOUNT 1 1 1 1 1 1 1\n";
   text += "WIDTH " + std::to_string(n) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\n";
@@ -264,7 +265,7 @@ constexpr double kReviewRangeM = 30.0;
 constexpr std::array<int, 2> kReviewImagePx{1140, 800};
 constexpr std::array<int, 4> kReviewPlotPx{60, 40, 780, 760};
 
-std::string lidar_review_script(int index, bool with_detections) {
+std::string lidar_review_script(int index, bool with_detections, bool with_clutter) {
   auto screen_x = [](int px) { return std::to_string(px / double(kReviewImagePx[0])); };
   auto screen_y = [](int px) { return std::to_string(1.0 - px / double(kReviewImagePx[1])); };
   const std::string range = std::to_string(kReviewRangeM);
@@ -279,8 +280,10 @@ std::string lidar_review_script(int index, bool with_detections) {
                   ", screen " + screen_y(kReviewPlotPx[1]) + " left top Left reverse box\n";
   if (!with_detections) s += "set label 1 'no detector ran on this sweep' at graph 0.02, graph 0.97\n";
   s += "plot $ground using 1:2 with points pt 7 ps 0.12 lc rgb '#c8c8c8' title 'ground returns', "
-       "$returns using 1:2 with points pt 7 ps 0.2 lc rgb '#404040' title 'cone returns', "
-       "$blue using 1:2 with points pt 7 ps 1.3 lc rgb '#1f4fff' title 'blue cone (true)', "
+       "$returns using 1:2 with points pt 7 ps 0.2 lc rgb '#404040' title 'cone returns', ";
+  if (with_clutter)
+    s += "$clutter using 1:2 with points pt 7 ps 0.2 lc rgb '#8b4513' title 'clutter returns', ";
+  s += "$blue using 1:2 with points pt 7 ps 1.3 lc rgb '#1f4fff' title 'blue cone (true)', "
        "$yellow using 1:2 with points pt 7 ps 1.3 lc rgb '#e8c000' title 'yellow cone (true)', "
        "$orange using 1:2 with points pt 7 ps 1.3 lc rgb '#ff8c00' title 'orange cone (true)', "
        "$big_orange using 1:2 with points pt 7 ps 2.0 lc rgb '#b04000' "
@@ -300,8 +303,10 @@ std::string lidar_review_script(int index, bool with_detections) {
 std::vector<PlotData> lidar_review_data(const PlotData& ground, const PlotData& returns,
                                         const std::array<PlotData, 4>& by_class,
                                         const PlotData& found, const PlotData& missed,
-                                        const PlotData& false_positive) {
+                                        const PlotData& false_positive,
+                                        const PlotData& clutter) {
   std::vector<PlotData> data{ground, returns};
+  if (!clutter.rows.empty()) data.push_back(clutter);
   data.insert(data.end(), by_class.begin(), by_class.end());
   data.insert(data.end(), {found, missed, false_positive});
   for (PlotData& d : data)
@@ -361,6 +366,9 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
     cone_latency_us_ = s.sensors.cone_sensor.timing.latency_us();
   }
 
+  // the scenery the LiDAR and the camera see (nothing at density 0), from its own stream
+  scenery_ = tracks::place_scenery(track, s.clutter, s.seed);
+
   // raw-data perception switches on the sensors it needs
   const bool raw_lidar = s.perception == "lidar" || s.perception == "fused";
   const bool raw_camera = s.perception == "stereo" || s.perception == "fused";
@@ -377,7 +385,7 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
       throw std::invalid_argument("sensors.lidar.mount: unknown mount " + s.sensors.lidar_mount);
     config->mount = *mount;
     lidar_mount_ = *mount;
-    lidar_ = std::make_unique<sensors::Lidar>(*config, track);
+    lidar_ = std::make_unique<sensors::Lidar>(*config, track, scenery_);
     poses_ = sensors::PoseHistory(2 * config->sweep_period_us());
     poses_.push(0, car.vehicle_pose3());
     lidar_latency_us_ = core::from_seconds(s.sensors.lidar_latency_s);
@@ -389,7 +397,8 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
   if (s.sensors.camera_enabled || raw_camera || tap_camera || dump_.sensors.count("camera")) {
     if (const std::string e = s.sensors.camera.validate(); !e.empty())
       throw std::invalid_argument("sensors.camera." + e);
-    camera_ = std::make_unique<sensors::StereoCamera>(s.sensors.camera, car.model(), track);
+    camera_ =
+        std::make_unique<sensors::StereoCamera>(s.sensors.camera, car.model(), track, scenery_);
     camera_period_us_ = core::from_seconds(1.0 / s.sensors.camera_rate_hz);
     with_depth_ = s.sensors.camera_depth;
     camera_latency_us_ = core::from_seconds(s.sensors.camera_latency_s);
@@ -397,6 +406,7 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
   if (raw_lidar || raw_camera || s.perception_plugin)
     perception_ = std::make_unique<PerceptionRunner>(
         s, track, lidar_ ? lidar_->config().mount : core::Pose3{});
+  if (perception_) perception_->set_scenery(scenery_);
 
   // the dump folders
   for (const std::string& name : dump_.sensors) {
@@ -689,19 +699,22 @@ void SensorRig::dump_sweep(int index, const sensors::LidarScan& scan,
   write_text(dir / frame_name(index, "json"), json_text(with_detections, 2) + "\n");
   if (dump_.review_png) {
     PlotData returns{"returns", {}}, ground{"ground", {}}, found{"found", {}},
-        false_positive{"false_positive", {}};
+        false_positive{"false_positive", {}}, clutter{"clutter", {}};
     for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
       const auto& p = scan.cloud.points[i];
       if (std::abs(p.x) > kReviewRangeM || std::abs(p.y) > kReviewRangeM) continue;
-      (scan.labels.cone_id[i] >= 0 ? returns : ground).rows.push_back({p.x, p.y});
+      const int label = scan.labels.cone_id[i];
+      (label >= 0 ? returns : core::clutter_of_label(label) ? clutter : ground)
+          .rows.push_back({p.x, p.y});
     }
     if (detections)
       for (size_t i = 0; i < detections->cones.size(); ++i)
         (outcome->detection_cone[i] >= 0 ? found : false_positive)
             .rows.push_back({detections->cones[i].centre_sensor.x(),
                              detections->cones[i].centre_sensor.y()});
-    render_png(lidar_review_script(index, detections.has_value()),
-               lidar_review_data(ground, returns, by_class, found, missed_xy, false_positive),
+    render_png(lidar_review_script(index, detections.has_value(), !clutter.rows.empty()),
+               lidar_review_data(ground, returns, by_class, found, missed_xy, false_positive,
+                                 clutter),
                dir / frame_name(index, "png"), kReviewImagePx[0], kReviewImagePx[1]);
   }
 }

@@ -107,6 +107,8 @@ class SensorRig {
 
   /// The raw-data perception (`perception: lidar | stereo | fused`), null otherwise.
   const PerceptionRunner* perception() const { return perception_.get(); }
+  /// The scenery and clutter the LiDAR and the camera see (world.clutter; empty at density 0).
+  const std::vector<tracks::SceneryObject>& scenery() const { return scenery_; }
 
   /// The cone detection frames whose latency has passed by time t, oldest first.
   std::optional<DeliveredDetections> take_detections(core::TimeUs t);
@@ -174,6 +176,8 @@ class SensorRig {
   core::TimeUs cone_latency_us_ = 0;
   std::deque<std::pair<core::TimeUs, DeliveredDetections>> cone_queue_;
 
+  // the scenery and clutter beside the track (world.clutter)
+  std::vector<tracks::SceneryObject> scenery_;
   std::unique_ptr<sensors::Lidar> lidar_;
   sensors::PoseHistory poses_;
   core::Rng lidar_rng_;

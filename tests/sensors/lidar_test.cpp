@@ -7,13 +7,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <optional>
 #include <utility>
 #include <vector>
 
 #include "sensors/cone_mesh.hpp"
 #include "sensors/lidar_config.hpp"
 #include "sensors/pose_history.hpp"
+#include "tracks/scenery.hpp"
 
 namespace conesim::sensors {
 namespace {
@@ -594,6 +597,108 @@ TEST(ConeMesh, ShapesHaveTheHandbookSizesAndStripes) {
   EXPECT_EQ(mesh.triangles.size(), mesh.materials.size());
   for (const Eigen::Vector3f& v : mesh.vertices)
     EXPECT_LT(big.surface_distance(v.cast<double>()), 1e-6) << v.transpose();
+}
+
+// ---------------------------------------------------------------------------------------------
+// scenery and clutter (issue 17)
+
+// distance from a point in a solid's frame to its surface: exact for a box, along the radius
+// (never less than the true distance) for a cylinder or frustum
+double surface_distance(const tracks::ScenePrimitive& part, const Eigen::Vector3d& q) {
+  if (part.shape == tracks::ScenePrimitive::Shape::kBox) {
+    const Eigen::Vector3d d = q.cwiseAbs() - part.size;
+    const double outside = d.cwiseMax(0.0).norm();
+    return outside > 0.0 ? outside : -d.maxCoeff();
+  }
+  const double r0 = part.size.x();
+  const double r1 =
+      part.shape == tracks::ScenePrimitive::Shape::kCylinder ? part.size.x() : part.size.y();
+  const double hz = part.size.z();
+  const double t = std::clamp((q.z() + hz) / (2.0 * hz), 0.0, 1.0);
+  const double radial = std::hypot(q.x(), q.y()) - (r0 + (r1 - r0) * t);
+  const double axial = std::abs(q.z()) - hz;
+  return std::abs(std::max(radial, axial));
+}
+
+// one object of every class around a car standing at the origin, clear of two cones ahead
+std::vector<tracks::SceneryObject> one_of_each() {
+  using core::ClutterClass;
+  const std::pair<ClutterClass, core::Pose2> placed[] = {
+      {ClutterClass::kBarrier, {10.0, 5.0, 0.3}},   {ClutterClass::kFence, {2.0, 12.0, 0.0}},
+      {ClutterClass::kTyreStack, {8.0, -5.0, 0.0}}, {ClutterClass::kTent, {-6.0, -7.0, 0.2}},
+      {ClutterClass::kPerson, {-3.0, 4.0, 1.0}},    {ClutterClass::kSpareCone, {2.1, -4.0, 0.0}},
+      {ClutterClass::kLyingCone, {-1.9, 0.5, 0.7}}, {ClutterClass::kGrassEdge, {6.5, -7.0, 0.0}}};
+  std::vector<tracks::SceneryObject> objects;
+  for (const auto& [cls, pose] : placed) objects.push_back(tracks::make_scenery_object(cls, pose));
+  return objects;
+}
+
+// Every object returns points; each carries its class's clutter label and lies on one of the
+// object's solids (to the facets of the round ones); no point on clutter carries a cone id.
+TEST(Lidar, AClutterObjectReturnsPointsAndNoConeLabel) {
+  const tracks::Track track = make_track(
+      {{core::Vec2(7.0, 1.5), ConeClass::kBlue}, {core::Vec2(7.0, -1.5), ConeClass::kYellow}});
+  const std::vector<tracks::SceneryObject> objects = one_of_each();
+  const LidarConfig config = noiseless();
+  const Lidar lidar(config, track, objects);
+  const PoseHistory poses = drive(Pose3{}, 0.0, 0, 200'000);
+  core::Rng rng(3);
+  const LidarScan scan = lidar.sweep(0, poses, rng);
+
+  // the facets of the widest round solid (0.3 m tyres), and the single-precision rounding
+  const double tolerance = 0.3 * (1.0 - std::cos(std::numbers::pi / config.cone_mesh_sides)) + 2e-3;
+  std::vector<int> per_class(core::kClutterClassCount, 0);
+  for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+    const Eigen::Vector3d p = in_track(lidar, poses, scan.cloud, scan.cloud.points[i]);
+    const int label = scan.labels.cone_id[i];
+    if (label >= 0) {
+      // a cone's point lies on its cone, never on an object
+      const tracks::Cone& cone = track.cone(label);
+      ASSERT_LT((p.head<2>() - cone.position).norm(), 0.2) << "cone " << label;
+      continue;
+    }
+    const std::optional<core::ClutterClass> cls = core::clutter_of_label(label);
+    if (!cls) {
+      ASSERT_EQ(label, core::PointCloudLabels::kGroundLabel);
+      continue;
+    }
+    ++per_class[static_cast<size_t>(*cls)];
+    const tracks::SceneryObject& o = objects[static_cast<size_t>(*cls)];
+    ASSERT_EQ(o.cls, *cls);
+    const Eigen::Matrix3d turn =
+        Eigen::AngleAxisd(o.pose.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    const Eigen::Vector3d local = turn.transpose() * (p - Eigen::Vector3d(o.pose.x, o.pose.y, 0.0));
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const tracks::ScenePrimitive& part : o.parts)
+      nearest = std::min(nearest,
+                         surface_distance(part, part.rotation.transpose() * (local - part.centre)));
+    ASSERT_LT(nearest, tolerance) << core::to_string(*cls) << " point " << local.transpose();
+  }
+  for (core::ClutterClass c : core::kClutterClasses) {
+    // the cones lower than the sensor meet one ring or two; the rest many
+    const bool low = c == core::ClutterClass::kSpareCone || c == core::ClutterClass::kLyingCone;
+    EXPECT_GE(per_class[static_cast<size_t>(c)], low ? 2 : 20) << core::to_string(c);
+  }
+}
+
+// Scenery beyond the maximum range changes no point and no label, with noise and dropout on:
+// the objects draw nothing from the sweep's generator. An empty scenery is today's scene.
+TEST(Lidar, SceneryOutOfRangeChangesNoPoint) {
+  LidarConfig config;
+  config.dropout_probability = 0.05;
+  const tracks::Track track = ring_of_cones();
+  std::vector<tracks::SceneryObject> far = one_of_each();
+  for (tracks::SceneryObject& o : far) o.pose.x += 3.0 * config.max_range_m;
+  const PoseHistory poses = drive(planar_pose(0.0, 0.0, 0.3), 5.0, 0, 200'000);
+  auto scan_of = [&](const Lidar& lidar) {
+    core::Rng rng(42);
+    return lidar.sweep(10'000, poses, rng);
+  };
+  const LidarScan today = scan_of(Lidar(config, track));
+  EXPECT_TRUE(same_points(today, scan_of(Lidar(config, track, far))));
+  EXPECT_TRUE(same_points(today, scan_of(Lidar(config, track, {}))));
+  // the same objects in range do change the scan
+  EXPECT_FALSE(same_points(today, scan_of(Lidar(config, track, one_of_each()))));
 }
 
 }  // namespace

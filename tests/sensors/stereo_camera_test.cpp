@@ -8,10 +8,13 @@
 #include <numbers>
 #include <optional>
 #include <set>
+#include <utility>
+#include <vector>
 
 #include "core/cone_geometry.hpp"
 #include "sensors/png_writer.hpp"
 #include "sim/vehicle_sim.hpp"
+#include "tracks/scenery.hpp"
 #include "vehicle_models/vehicle_params.hpp"
 
 namespace conesim::sensors {
@@ -67,11 +70,13 @@ tracks::Track test_track(const StereoCameraConfig& config) {
 
 // a car at rest at the track origin, its stereo camera, and one rendered frame
 struct Rig {
-  explicit Rig(const StereoCameraConfig& c = {}, std::set<int> knocked = {})
+  explicit Rig(const StereoCameraConfig& c = {}, std::set<int> knocked = {},
+               std::vector<tracks::SceneryObject> objects = {})
       : config(c),
         track(test_track(c)),
+        scenery(std::move(objects)),
         car(vehicle_models::VehicleParams{}, {}),
-        camera(c, car.model(), track) {
+        camera(c, car.model(), track, scenery) {
     render(std::move(knocked));
   }
   void render(std::set<int> knocked) {
@@ -98,6 +103,7 @@ struct Rig {
 
   StereoCameraConfig config;
   tracks::Track track;
+  std::vector<tracks::SceneryObject> scenery;
   sim::VehicleSim car;
   StereoCamera camera;
   core::StereoFrame frame;
@@ -245,6 +251,28 @@ TEST(StereoCamera, KnockedConesAreNotDrawn) {
   // standing again, it is drawn
   rig.render({});
   EXPECT_GT(colour_centroid(rig.frame.left, *uv, 40, is_blue).second, 50);
+}
+
+// A scenery object (issue 17) is drawn in both images where it stands, and only there: the red
+// half of a road barrier 15 m ahead, to the left of the cones
+TEST(StereoCamera, SceneryIsDrawnWhereItStands) {
+  const core::Pose2 pose{15.0, 4.5, 0.0};
+  const tracks::SceneryObject barrier =
+      tracks::make_scenery_object(core::ClutterClass::kBarrier, pose);
+  const tracks::ScenePrimitive& red = barrier.parts.front();
+  const Vector3d centre(pose.x + red.centre.x(), pose.y + red.centre.y(), red.centre.z());
+  const auto is_red = [](Rgb c) { return c.r > c.g + 50 && c.r > c.b + 50; };
+  const Rig with({}, {}, {barrier}), without;
+  for (const bool left : {true, false}) {
+    const auto uv = with.project(centre, left);
+    ASSERT_TRUE(uv.has_value());
+    const int u = static_cast<int>(std::lround(uv->x())),
+              v = static_cast<int>(std::lround(uv->y()));
+    ASSERT_TRUE(u >= 0 && u < with.config.width_px && v >= 0 && v < with.config.height_px);
+    const Rgb p = pixel(left ? with.frame.left : with.frame.right, u, v);
+    EXPECT_TRUE(is_red(p)) << u << "," << v << ": " << p.r << " " << p.g << " " << p.b;
+    EXPECT_FALSE(is_red(pixel(left ? without.frame.left : without.frame.right, u, v)));
+  }
 }
 
 TEST(StereoCamera, GroundLooksLikeAsphaltAndTheSkyIsAbove) {

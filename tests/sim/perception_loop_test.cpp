@@ -78,8 +78,8 @@ TEST(PerceptionLoop, StereoConesAreScoredAndDrawnOnTheDump) {
   EXPECT_GE(recall_within(p["stereo"], 10.0), 0.90);
   EXPECT_LE(band(p["stereo"], 5.0)["position_rmse_m"].get<double>(), 0.30);
   // the sidecar lists the boxes that the review image draws on the left one, detected and true
-  const fs::path out = fs::temp_directory_path() /
-                       ("conesim-perception-stereo-" + std::to_string(::getpid()));
+  const fs::path out =
+      fs::temp_directory_path() / ("conesim-perception-stereo-" + std::to_string(::getpid()));
   nlohmann::json sidecar;
   std::ifstream(out / "images/camera/000000.json") >> sidecar;
   EXPECT_TRUE(sidecar.contains("detections"));
@@ -87,6 +87,30 @@ TEST(PerceptionLoop, StereoConesAreScoredAndDrawnOnTheDump) {
   EXPECT_FALSE(sidecar["true_boxes"].empty());
   EXPECT_TRUE(fs::exists(out / "images/camera/review/000000.png"));
   fs::remove_all(out);
+}
+
+// Scenery (issue 17) in the loop: the car drives through an acceleration run lined with clutter
+// untouched, `world` says what stands, and the LiDAR's detections on clutter are counted by class
+// (never more than it detected)
+TEST(PerceptionLoop, ClutterIsCountedByClassAndTheCarDrivesOn) {
+  const RunResult r = run_shipped("acceleration", "clutter",
+                                  {"perception=lidar", "sensors.lidar.model=vlp32c", "seed=1",
+                                   "world.clutter.objects_per_100m=20"});
+  EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
+  EXPECT_TRUE(r.referee.cones_hit.empty());
+  ASSERT_TRUE(r.metrics.contains("world"));
+  const int objects = r.metrics["world"]["clutter_objects"].get<int>();
+  EXPECT_GE(objects, 20);
+  int by_class = 0;
+  for (const auto& [name, n] : r.metrics["world"]["clutter_by_class"].items())
+    by_class += n.get<int>();
+  EXPECT_EQ(by_class, objects);
+  const nlohmann::json& c = r.metrics["perception"]["lidar_clutter"];
+  int64_t on_clutter = 0;
+  for (const auto& [name, k] : c["by_class"].items()) on_clutter += k["detections"].get<int64_t>();
+  EXPECT_LE(on_clutter, c["detections"].get<int64_t>());
+  EXPECT_EQ(c["detections"].get<int64_t>(),
+            r.metrics["perception"]["lidar"]["detections"].get<int64_t>());
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 #include "sim/scenario.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -110,6 +111,29 @@ TEST_F(ScenarioFile, OdometrySensorNoiseIsAScenarioKey) {
   EXPECT_NE(error_of(head + "sensors: {wheel_encoders: {teeth: 3}}\n")
                 .find("sensors.wheel_encoders.teeth: unknown key"),
             std::string::npos);
+}
+
+// world.clutter (issue 17): read, 0 by default, a bad value refused at its key with the range
+TEST_F(ScenarioFile, ClutterDensityIsAScenarioKey) {
+  const std::string head = "event: trackdrive\nperception: lidar\n";
+  EXPECT_EQ(load_scenario(write(head)).clutter.objects_per_100m, 0.0);
+  EXPECT_FALSE(load_scenario(write(head)).clutter.grass_edge);
+  const Scenario s = load_scenario(
+      write(head + "world: {clutter: {objects_per_100m: 2.5, margin_m: 4, seed_offset: 7,\n"
+                   "  grass_edge: true}}\n"));
+  EXPECT_TRUE(s.clutter.grass_edge);
+  EXPECT_DOUBLE_EQ(s.clutter.objects_per_100m, 2.5);
+  EXPECT_DOUBLE_EQ(s.clutter.margin_m, 4.0);
+  EXPECT_EQ(s.clutter.seed_offset, 7u);
+  using ::testing::HasSubstr;
+  EXPECT_THAT(
+      error_of(head + "world: {clutter: {objects_per_100m: 250}}\n"),
+      HasSubstr(":3: world.clutter.objects_per_100m: expected a number in [0, 100], got 250"));
+  EXPECT_THAT(error_of(head, {"world.clutter.margin_m=0.2"}),
+              HasSubstr("--set: world.clutter.margin_m: expected a number in [1, 50], got 0.2"));
+  EXPECT_THAT(error_of(head + "world: {clutter: {density: 1}}\n"),
+              HasSubstr("world.clutter.density: unknown key; expected one of: objects_per_100m, "
+                        "margin_m, spread_m, seed_offset, grass_edge"));
 }
 
 TEST_F(ScenarioFile, BadAblationsNameTheKeyAndWhatWasExpected) {
