@@ -194,7 +194,7 @@ json lane_figures(const json& lane) {
   for (const char* key :
        {"role", "association", "ablations", "ideal_association", "map_rmse_m", "map_rmse_aligned_m",
         "map_matched", "map_spurious", "map_missed", "ate_rmse_m", "da_correct", "da_wrong",
-        "da_correct_fraction", "loop_closures", "false_loop_closures", "update_cpu_ms_median",
+        "da_rejected", "da_correct_fraction", "loop_closures", "false_loop_closures", "update_cpu_ms_median",
         "update_ms_median", "backend_stats"})
     if (lane.contains(key)) out[key] = lane[key];
   out["map_rmse_before_closure_m"] = finite_or_null(rmse_before_closure(lane));
@@ -366,10 +366,12 @@ void add_fst_tables(const json& c, json& tables) {
     // associations (Table 4.3)
     json a =
         table("fst", "Correct and missed associations (FST Table 4.3), summed over runs, " + where,
-              "Judged against the labels (docs/metrics.md, da_correct / da_wrong). The "
-              "thesis counted one run of the real car; its accuracy is what compares.",
-              {"method", "correct", "wrong", "accuracy", "thesis correct", "thesis wrong",
-               "thesis accuracy"});
+              "Judged against the labels (docs/metrics.md, da_correct / da_wrong); 'rejected': "
+              "observations of a cone left unpaired (da_rejected: duplicates, and for "
+              "tracking-aided the ambiguous ones it holds back). The thesis counted one run of "
+              "the real car; its accuracy is what compares.",
+              {"method", "correct", "wrong", "rejected", "accuracy", "thesis correct",
+               "thesis wrong", "thesis accuracy"});
     for (const std::string& lane : lanes_of(summary, "fst", name)) {
       const json& s = *summary_of(summary, "fst", name, lane);
       const json th = thesis_for("fst", lane);
@@ -377,6 +379,7 @@ void add_fst_tables(const json& c, json& tables) {
       const double tc = has ? th["da_correct"].get<double>() : NAN;
       const double tw = has ? th["da_wrong"].get<double>() : NAN;
       a["rows"].push_back({method_name(lane), fixed(s["da_correct"], 0), fixed(s["da_wrong"], 0),
+                           fixed(s.value("da_rejected", json()), 0),
                            fixed(s["da_correct_fraction"], 4), fixed(tc, 0), fixed(tw, 0),
                            fixed(tc / (tc + tw), 2)});
     }
@@ -723,12 +726,13 @@ json compare_json(const StudyPlan& plan, const std::vector<StudyResult>& results
           v.push_back(number_or_nan((*f).value("backend_stats", json::object()), key));
         return v;
       };
-      double correct = 0, wrong = 0;
+      double correct = 0, wrong = 0, rejected = 0;
       int closed = 0;
       std::vector<double> after;
       for (const json* f : fs_) {
         correct += number_or_nan(*f, "da_correct");
         wrong += number_or_nan(*f, "da_wrong");
+        rejected += f->value("da_rejected", 0.0);
         if (number_or_nan(*f, "loop_closures") > 0) {
           ++closed;
           after.push_back(number_or_nan(*f, "map_rmse_m"));
@@ -754,6 +758,7 @@ json compare_json(const StudyPlan& plan, const std::vector<StudyResult>& results
            {"preliminary_dropped", finite_or_null(median(collect_stat("preliminary_dropped")))},
            {"da_correct", correct},
            {"da_wrong", wrong},
+           {"da_rejected", rejected},
            {"da_correct_fraction",
             correct + wrong > 0 ? json(correct / (correct + wrong)) : json()},
            {"update_cpu_ms_median", finite_or_null(median(collect("update_cpu_ms_median")))},

@@ -494,7 +494,8 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
                         number("gate_chi2", ekf.association.gate_chi2, e),
                         number("joint_probability", ekf.association.joint_probability, e),
                         number("nn_radius_m", ekf.association.nn_radius_m, e),
-                        number("track_memory_frames", ekf.association.track_memory_frames, e)});
+                        number("track_memory_frames", ekf.association.track_memory_frames, e),
+                        number("ambiguity_margin", ekf.association.ambiguity_margin, e)});
         }},
        {"fastslam",
         [&](const YAML::Node& v) {
@@ -530,7 +531,8 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
                         number("gate_chi2", f.association.gate_chi2, e),
                         number("joint_probability", f.association.joint_probability, e),
                         number("nn_radius_m", f.association.nn_radius_m, e),
-                        number("track_memory_frames", f.association.track_memory_frames, e)});
+                        number("track_memory_frames", f.association.track_memory_frames, e),
+                        number("ambiguity_margin", f.association.ambiguity_margin, e)});
         }},
        {"odometry",
         [&](const YAML::Node& v) {
@@ -564,6 +566,7 @@ void read_slam(const YAML::Node& n, const Where& top, Context& context, Scenario
                 }},
                number("gate_chi2", graph.association.gate_chi2, g),
                number("track_memory_frames", graph.association.track_memory_frames, g),
+               number("ambiguity_margin", graph.association.ambiguity_margin, g),
                {"localise_after_loop_closure", [&](const YAML::Node& x) {
                   graph.localise_after_loop_closure =
                       read_bool(x, g, "localise_after_loop_closure");
@@ -1286,6 +1289,10 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
     context.fail("slam.graph.gate_chi2", "expected a chi-square gate > 0");
   if (!(s.slam_settings.graph.association.track_memory_frames >= 1.0))
     context.fail("slam.graph.track_memory_frames", "expected >= 1 frame");
+  if (!(s.slam_settings.graph.association.ambiguity_margin >= 0.0 &&
+        s.slam_settings.graph.association.ambiguity_margin <= 100.0))
+    context.fail("slam.graph.ambiguity_margin",
+                 "expected a cost margin from 0 (pair every observation) to 100");
   // autonomy: chooses over the top-level perception: and slam: (a shipped scenario's stack with
   // one part swapped: --set autonomy.slam=plugin:PATH)
   if (autonomy.perception) s.perception = *autonomy.perception;

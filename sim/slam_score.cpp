@@ -103,7 +103,10 @@ void SlamScorer::score(const Update& u) {
     if (true_id >= 0 && true_id < static_cast<int>(cone_observed_.size()))
       cone_observed_[true_id] = 1;
     const auto& a = associations[i];
-    if (a.kind == slam::Association::Kind::kRejected) continue;
+    if (a.kind == slam::Association::Kind::kRejected) {
+      if (true_id >= 0) ++da_rejected_;
+      continue;
+    }
     auto& votes = landmark_votes_[a.landmark_id];
     if (a.kind == slam::Association::Kind::kMatched) {
       int majority = -3, best = 0;
@@ -290,6 +293,7 @@ nlohmann::json SlamScorer::metrics(const core::Estimate& e) const {
       {"trajectory_alignment", pose_json(path_alignment)},
       {"da_correct", da_correct_},
       {"da_wrong", da_wrong_},
+      {"da_rejected", da_rejected_},
       {"da_correct_fraction",
        total_da ? nlohmann::json(static_cast<double>(da_correct_) / total_da) : nlohmann::json()},
       {"loop_closures", loop_closures_},

@@ -107,6 +107,9 @@ class SlamScorer {
   }
   int da_correct() const { return da_correct_; }
   int da_wrong() const { return da_wrong_; }
+  /// Observations of a true cone that the association left unpaired and started no landmark
+  /// with (a duplicate, a wrong colour, or held back as ambiguous).
+  int da_rejected() const { return da_rejected_; }
   int false_loop_closures() const { return false_loop_closures_; }
   int loop_closures() const { return loop_closures_; }
 
@@ -133,6 +136,7 @@ class SlamScorer {
   std::vector<core::Vec2> wrong_association_places_;
   int da_correct_ = 0;
   int da_wrong_ = 0;
+  int da_rejected_ = 0;
   int loop_closures_ = 0;
   int false_loop_closures_ = 0;
   nlohmann::json loop_closure_events_ = nlohmann::json::array();

@@ -256,6 +256,19 @@ std::vector<int> associate(const AssociationParams& params, const AssociationPro
         std::sort(ic.begin(), ic.end(), by_cost);
       }
       greedy(ic, pairing_of, taken);
+      if (tracks) {
+        // an ambiguous observation of a track waits for a later frame; the landmark it held goes
+        // back to the others
+        std::vector<char> waits = ambiguous_observations(ic, pairing_of, params.ambiguity_margin);
+        for (int i = 0; i < n; ++i)
+          if (p.observation_track(i) < 0) waits[i] = 0;
+        if (std::find(waits.begin(), waits.end(), 1) != waits.end()) {
+          std::erase_if(ic, [&](const Pairing& q) { return waits[q.observation] != 0; });
+          std::fill(pairing_of.begin(), pairing_of.end(), -1);
+          std::fill(taken.begin(), taken.end(), 0);
+          greedy(ic, pairing_of, taken);
+        }
+      }
       return pairing_of;
     }
     case AssociationMethod::kScnn: {

@@ -13,6 +13,7 @@
 #include "core/autonomy_types.hpp"
 #include "core/cone.hpp"
 #include "core/geometry.hpp"
+#include "slam/association/ambiguity.hpp"
 #include "slam/association/track_bindings.hpp"
 
 namespace conesim::slam {
@@ -61,6 +62,9 @@ struct AssociationParams {
   double nn_radius_m = 1.0;
   /// Tracking-aided: frames over which a track's evidence fades (TrackBindings).
   double track_memory_frames = 10.0;
+  /// Tracking-aided: the margin an observation of a track needs to be paired in this frame
+  /// (slam/association/ambiguity.hpp); 0 pairs every observation.
+  double ambiguity_margin = kDefaultAmbiguityMargin;
   /// JCBB stops after this many nodes of the interpretation tree (the best found so far wins).
   int jcbb_max_nodes = 20000;
 };

@@ -185,12 +185,29 @@ std::vector<Association> associate(const AssociationConfig& config, const core::
     std::stable_sort(pairings.begin(), pairings.end(), by_cost);
   }
   greedy(pairing_of);
+  // tracking-aided, while mapping: an ambiguous observation of a track waits for a later frame
+  // (rejected, never new), and the landmark it held goes back to the others. On a fixed map a
+  // wrong pairing stays out of the map and the pose needs every observation it can get
+  std::vector<char> waits(n_obs, 0);
+  if (config.use_track_ids && tracks && allow_new) {
+    waits = ambiguous_observations(pairings, pairing_of, config.ambiguity_margin);
+    for (int i = 0; i < n_obs; ++i)
+      if (observations.cones[i].track_id < 0) waits[i] = 0;
+    // returning to landmarks not seen for long, the drift consensus above decides: holding
+    // those observations back would starve the pose of the very corrections that close the loop
+    for (const Pairing& p : pairings)
+      if (p.old && pairing_of[p.observation] == p.candidate) waits[p.observation] = 0;
+    if (std::find(waits.begin(), waits.end(), 1) != waits.end()) {
+      std::erase_if(pairings, [&](const Pairing& p) { return waits[p.observation] != 0; });
+      greedy(pairing_of);
+    }
+  }
   for (int i = 0; i < n_obs; ++i)
     if (pairing_of[i] >= 0) out[i] = {candidates[pairing_of[i]].id, Association::Kind::kMatched};
 
   // the rest: new when far from everything, else rejected
   for (int i = 0; i < n_obs; ++i) {
-    if (out[i].kind == Association::Kind::kMatched) continue;
+    if (out[i].kind == Association::Kind::kMatched || waits[i]) continue;
     const bool far = nearest_d2[i] > config.new_landmark_chi2 &&
                      nearest_m[i] > config.new_landmark_min_distance_m;
     out[i].kind = allow_new && far ? Association::Kind::kNew : Association::Kind::kRejected;
@@ -275,7 +292,9 @@ std::vector<Association> associate_with_method(
         allow_new ? Association{Association::kNoLandmark, Association::Kind::kNew} : Association{});
   }
   const MarginalProblem problem(config, pose, pose_covariance, candidates, observations, labels);
-  const std::vector<int> pairing = associate(params, problem, tracks, evidence);
+  AssociationParams patient = params;  // held back only while mapping (as in associate())
+  if (!allow_new) patient.ambiguity_margin = 0.0;
+  const std::vector<int> pairing = associate(patient, problem, tracks, evidence);
   if (evidence)
     for (int& e : *evidence)
       if (e >= 0) e = candidates[e].id;

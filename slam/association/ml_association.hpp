@@ -10,6 +10,7 @@
 #include "core/autonomy_types.hpp"
 #include "core/cone.hpp"
 #include "core/geometry.hpp"
+#include "slam/association/ambiguity.hpp"
 #include "slam/association/methods.hpp"
 #include "slam/backend.hpp"
 
@@ -29,6 +30,11 @@ struct AssociationConfig {
   /// frames are likelier for it (TrackBindings), over this many frames of memory.
   bool use_track_ids = true;
   double track_memory_frames = 10.0;
+  /// Tracking-aided only: an observation of a track waits for a later frame unless its
+  /// likeliest landmark (the track's prior counted) beats every other one in its gate by this
+  /// much in cost, 2 ln of the likelihood ratio (slam/association/ambiguity.hpp); 0 pairs
+  /// every observation. Observations without a track are never held back.
+  double ambiguity_margin = kDefaultAmbiguityMargin;
   /// A landmark's class is trusted for the class test once its votes lead by this many.
   int class_vote_margin = 2;
   /// Returning to old landmarks (drift variance above old_drift_variance_m2), the loose gate

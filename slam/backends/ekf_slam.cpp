@@ -42,6 +42,8 @@ std::string EkfSlamConfig::validate() const {
   if (!(association.nn_radius_m > 0.0)) return "association.nn_radius_m: expected > 0 m";
   if (!(association.track_memory_frames >= 1.0))
     return "association.track_memory_frames: expected >= 1 frame";
+  if (!(association.ambiguity_margin >= 0.0 && association.ambiguity_margin <= 100.0))
+    return "association.ambiguity_margin: expected a cost margin from 0 to 100";
   return {};
 }
 
@@ -280,8 +282,10 @@ void EkfSlam::process(const SlamInput& input) {
   const auto start = std::chrono::steady_clock::now();
   const bool tracking = config_.association.method == AssociationMethod::kTrackingAided;
   std::vector<int> evidence;
+  AssociationParams patient = config_.association;  // held back only while mapping
+  if (localising) patient.ambiguity_margin = 0.0;
   const std::vector<int> pairing =
-      associate(config_.association, problem, tracking ? &track_bindings_ : nullptr,
+      associate(patient, problem, tracking ? &track_bindings_ : nullptr,
                 tracking ? &evidence : nullptr);
   association_us_ =
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();

@@ -148,6 +148,8 @@ std::string FastSlamConfig::validate() const {
     return "joint_probability: expected a probability in (0.5, 1)";
   if (!(association.nn_radius_m > 0.0)) return "nn_radius_m: expected > 0 m";
   if (!(association.track_memory_frames >= 1.0)) return "track_memory_frames: expected >= 1 frame";
+  if (!(association.ambiguity_margin >= 0.0 && association.ambiguity_margin <= 100.0))
+    return "ambiguity_margin: expected a cost margin from 0 to 100";
   return loop_closure.validate();
 }
 
@@ -324,8 +326,10 @@ double FastSlam::update_particle(Particle& particle, const SlamInput& input,
   // the best particle after the update (FastSlam::update)
   const bool tracking = config_.association.method == AssociationMethod::kTrackingAided;
   std::vector<int> evidence;
+  AssociationParams patient = config_.association;  // held back only while mapping
+  if (localising) patient.ambiguity_margin = 0.0;
   std::vector<int> pairing =
-      associate(config_.association, problem, tracking ? &track_bindings_ : nullptr,
+      associate(patient, problem, tracking ? &track_bindings_ : nullptr,
                 tracking ? &evidence : nullptr);
   association_us_ +=
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();

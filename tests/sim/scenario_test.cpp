@@ -210,6 +210,12 @@ TEST_F(ScenarioFile, BadSlamBlocksNameTheKeyAndWhatWasExpected) {
   EXPECT_NE(error_of(head + "slam: {drive: graph, graph: {track_memory_frames: 0.5}}\n")
                 .find("slam.graph.track_memory_frames: expected >= 1 frame"),
             std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: graph, graph: {ambiguity_margin: -1}}\n")
+                .find("slam.graph.ambiguity_margin: expected a cost margin from 0"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "slam: {drive: ekf, ekf: {ambiguity_margin: 101}}\n")
+                .find("slam.ekf.ambiguity_margin: expected a cost margin from 0 to 100"),
+            std::string::npos);
   EXPECT_NE(error_of(head + "slam: {drive: fastslam2, fastslam: {particles: 0}}\n")
                 .find("slam.fastslam.particles: expected a count from 1 to 10000"),
             std::string::npos);

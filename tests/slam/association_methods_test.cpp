@@ -128,11 +128,18 @@ void vote(TrackBindings& bindings, int track, int landmark, int frames) {
   for (int k = 0; k < frames; ++k) bindings.record({track}, {landmark});
 }
 
+// the track's prior alone, every observation paired (its patience is tested below)
+AssociationParams impatient_tracking() {
+  AssociationParams p = with(AssociationMethod::kTrackingAided);
+  p.ambiguity_margin = 0.0;
+  return p;
+}
+
 TEST(TrackingAided, ATrackHistoryDecidesBetweenTwoCloseCones) {
   // 0.45 m from landmark 0, 0.35 m from landmark 1: maximum likelihood takes landmark 1
   Frame f = two_close_cones(0.45);
   f.tracks_ = {7};
-  const AssociationParams tracking = with(AssociationMethod::kTrackingAided);
+  const AssociationParams tracking = impatient_tracking();
   EXPECT_EQ(associate(with(AssociationMethod::kMaximumLikelihood), f), (std::vector<int>{1}));
   // without a memory, or with a fresh track, tracking-aided is maximum likelihood
   EXPECT_EQ(associate(tracking, f), (std::vector<int>{1}));
@@ -153,7 +160,7 @@ TEST(TrackingAided, ATrackHistoryDecidesBetweenTwoCloseCones) {
 TEST(TrackingAided, ATrackThatSwappedConesFollowsTheEvidence) {
   TrackBindings bindings;
   vote(bindings, 7, 0, 5);
-  const AssociationParams tracking = with(AssociationMethod::kTrackingAided);
+  const AssociationParams tracking = impatient_tracking();
   // the track's observation now sits on landmark 1: d^2 7.1 to landmark 0 (inside the gate)
   // against 0, more than the track's prior makes up
   Frame on_one = two_close_cones(0.8);
@@ -183,11 +190,52 @@ TEST(TrackingAided, OneWrongFrameDoesNotBindATrack) {
   // its next observation, clearly nearer landmark 0 (0.2 m against 0.6 m), still goes there
   Frame f = two_close_cones(0.2);
   f.tracks_ = {9};
-  EXPECT_EQ(associate(with(AssociationMethod::kTrackingAided), f, &bindings),
-            (std::vector<int>{0}));
+  EXPECT_EQ(associate(impatient_tracking(), f, &bindings), (std::vector<int>{0}));
   // and three frames of evidence for landmark 0 bind it there
   vote(bindings, 9, 0, 3);
   EXPECT_EQ(bindings.bound_landmark(9), 0);
+}
+
+TEST(TrackingAided, AnAmbiguousObservationWaitsUntilItsTrackDecides) {
+  // 0.3 m from landmark 0 and 0.5 m from landmark 1 with 0.3 m noise: maximum likelihood takes
+  // landmark 0 at odds of only 2.4 to 1 (cost 1.0 against 2.8)
+  Frame f = two_close_cones(0.3);
+  f.tracks_ = {7};
+  const AssociationParams tracking = with(AssociationMethod::kTrackingAided);
+  ASSERT_NEAR(tracking.ambiguity_margin, 2.0 * std::log(10.0), 1e-12);
+  EXPECT_EQ(associate(with(AssociationMethod::kMaximumLikelihood), f), (std::vector<int>{0}));
+  // a fresh track's observation waits for a later, nearer frame of its track
+  TrackBindings bindings;
+  EXPECT_EQ(associate(tracking, f, &bindings), (std::vector<int>{-1}));
+  // an observation without a track has no later frame to wait for: paired as by ML
+  f.tracks_ = {-1};
+  EXPECT_EQ(associate(tracking, f, &bindings), (std::vector<int>{0}));
+  // five frames of the track on landmark 0 make it ten times likelier than landmark 1: paired
+  f.tracks_ = {7};
+  vote(bindings, 7, 0, 5);
+  EXPECT_EQ(associate(tracking, f, &bindings), (std::vector<int>{0}));
+  // a track whose history says landmark 1 while the frame says landmark 0 waits
+  TrackBindings other;
+  vote(other, 7, 1, 5);
+  EXPECT_EQ(associate(tracking, f, &other), (std::vector<int>{-1}));
+  // an unambiguous observation of a fresh track is paired at once (0.05 m from landmark 0)
+  Frame clear = two_close_cones(0.05);
+  clear.tracks_ = {8};
+  EXPECT_EQ(associate(tracking, clear, &bindings), (std::vector<int>{0}));
+}
+
+TEST(TrackingAided, AWaitingObservationLeavesItsLandmarkToTheOthers) {
+  // observation 0 (a fresh track) lies between landmarks 0 and 1, a little nearer landmark 1;
+  // observation 1 (no track) is 0.55 m from landmark 1 and far from the rest. Greedy ML gives
+  // landmark 1 to observation 0 and leaves observation 1 unpaired; once observation 0 waits,
+  // observation 1 gets landmark 1.
+  Frame f(0.01, 0.3, {{10.0, 0.0}, {10.0, 0.8}}, {{10.0, 0.45}, {10.0, 1.35}});
+  f.tracks_ = {7, -1};
+  EXPECT_EQ(associate(with(AssociationMethod::kMaximumLikelihood), f),
+            (std::vector<int>{1, -1}));
+  TrackBindings bindings;
+  EXPECT_EQ(associate(with(AssociationMethod::kTrackingAided), f, &bindings),
+            (std::vector<int>{-1, 1}));
 }
 
 TEST(TrackBindings, ForgetsLostTracksAndRejectsABadMemory) {

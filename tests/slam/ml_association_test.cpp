@@ -145,6 +145,41 @@ TEST(MlAssociation, FarObservationStartsANewLandmarkUnlessTheMapIsFixed) {
   EXPECT_EQ(associate({}, {}, nullptr, map, obs, false)[0].kind, Association::Kind::kRejected);
 }
 
+TEST(MlAssociation, TrackingAidedHoldsBackAnAmbiguousObservationOfATrack) {
+  // two cones 0.8 m apart, an observation with 0.3 m noise 0.3 m from one and 0.5 m from the
+  // other: ML pairs it with the nearer at odds of 2.4 to 1
+  std::vector<LandmarkCandidate> map(2);
+  for (int k = 0; k < 2; ++k) {
+    map[k].id = 10 + k;
+    map[k].position = {10.0, 0.8 * k};
+    map[k].covariance = Eigen::Matrix2d::Identity() * 1e-4;
+  }
+  core::ConeObservations obs;
+  core::ConeObservation o;
+  o.position = {10.0, 0.3};
+  o.covariance = Eigen::Matrix2d::Identity() * 0.09;
+  o.track_id = 4;
+  obs.cones.push_back(o);
+  TrackBindings fresh;
+  // with the tracks, a fresh track's ambiguous observation waits (rejected, never a new one)
+  const Association waits = associate({}, {}, nullptr, map, obs, true, &fresh)[0];
+  EXPECT_EQ(waits.kind, Association::Kind::kRejected);
+  // without the tracks, or without a track id, or with no margin, it is paired as before
+  EXPECT_EQ(associate({}, {}, nullptr, map, obs, true)[0].landmark_id, 10);
+  AssociationConfig impatient;
+  impatient.ambiguity_margin = 0.0;
+  EXPECT_EQ(associate(impatient, {}, nullptr, map, obs, true, &fresh)[0].landmark_id, 10);
+  obs.cones[0].track_id = -1;
+  EXPECT_EQ(associate({}, {}, nullptr, map, obs, true, &fresh)[0].landmark_id, 10);
+  // a track that followed cone 10 for five frames makes it ten times likelier: paired
+  obs.cones[0].track_id = 4;
+  TrackBindings followed;
+  for (int k = 0; k < 5; ++k) followed.record({4}, {10});
+  const Association paired = associate({}, {}, nullptr, map, obs, true, &followed)[0];
+  EXPECT_EQ(paired.kind, Association::Kind::kMatched);
+  EXPECT_EQ(paired.landmark_id, 10);
+}
+
 TEST(MlAssociation, OneLandmarkPerObservation) {
   // two observations on the same cone: the likelier wins, the other is rejected
   const std::vector<LandmarkCandidate> map = lane_map();
