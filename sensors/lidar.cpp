@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -200,20 +201,15 @@ bool tan_angle_to(float dx, float dy, float axis_x, float axis_y, float& tan_ang
 
 }  // namespace
 
-// where a ray from origin along dir first comes down onto the grid's surface between t_enter and
-// t_leave (each cell two triangles split along its diagonal from (i, j) to (i + 1, j + 1), as the
-// ground model splits it): the cells its track crosses, in order, each one's piece or two of
-// the ray tested against the triangle under it. The range and the triangle's upward normal
-// (not unit length); false when it stays above the surface
-bool meet_grid(const tracks::GroundGrid& g, const Eigen::Vector3f& origin,
-               const Eigen::Vector3f& dir, float t_enter, float t_leave, float& t_hit,
-               Eigen::Vector3f& normal) {
-  // the ray in cell units, clipped to the grid
-  const float cell = static_cast<float>(g.cell_m);
-  const float u0 = (origin.x() - static_cast<float>(g.x0)) / cell;
-  const float v0 = (origin.y() - static_cast<float>(g.y0)) / cell;
-  const float du = dir.x() / cell, dv = dir.y() / cell;
-  const float u_max = static_cast<float>(g.nx - 1), v_max = static_cast<float>(g.ny - 1);
+namespace {
+
+// the cells of a grid of nx x ny unit cells that a ray's track (u0 + t du, v0 + t dv) crosses
+// between t_enter and t_leave, in order: visit(i, j, ta, tb) for each cell and the stretch of the
+// ray over it, until a visit returns true (then true)
+template <class Visit>
+bool march(float u0, float v0, float du, float dv, float t_enter, float t_leave, int nx, int ny,
+           Visit&& visit) {
+  // the stretch over the grid
   const auto clip = [&t_enter, &t_leave](float p0, float dp, float hi) {
     if (dp == 0.f) {
       if (p0 < 0.f || p0 > hi) t_leave = -1.f;
@@ -223,31 +219,88 @@ bool meet_grid(const tracks::GroundGrid& g, const Eigen::Vector3f& origin,
     t_enter = std::max(t_enter, std::min(a, b));
     t_leave = std::min(t_leave, std::max(a, b));
   };
-  clip(u0, du, u_max);
-  clip(v0, dv, v_max);
+  clip(u0, du, static_cast<float>(nx));
+  clip(v0, dv, static_cast<float>(ny));
   if (!(t_enter <= t_leave)) return false;
 
   // the first cell and the steps to the next column and row of cells
-  const float mid = t_enter + 1e-4f * (t_leave - t_enter);
-  int i = std::clamp(static_cast<int>(std::floor(u0 + mid * du)), 0, g.nx - 2);
-  int j = std::clamp(static_cast<int>(std::floor(v0 + mid * dv)), 0, g.ny - 2);
+  const float start = t_enter + 1e-5f * (t_leave - t_enter);
+  int i = std::clamp(static_cast<int>(std::floor(u0 + start * du)), 0, nx - 1);
+  int j = std::clamp(static_cast<int>(std::floor(v0 + start * dv)), 0, ny - 1);
   const int step_i = du > 0.f ? 1 : -1, step_j = dv > 0.f ? 1 : -1;
   const float inf = std::numeric_limits<float>::infinity();
-  const auto next = [](float p0, float dp, int k, int step) {
-    if (dp == 0.f) return std::numeric_limits<float>::infinity();
-    return (static_cast<float>(step > 0 ? k + 1 : k) - p0) / dp;
-  };
-  float t_next_i = next(u0, du, i, step_i), t_next_j = next(v0, dv, j, step_j);
+  float t_next_i = du != 0.f ? (static_cast<float>(step_i > 0 ? i + 1 : i) - u0) / du : inf;
+  float t_next_j = dv != 0.f ? (static_cast<float>(step_j > 0 ? j + 1 : j) - v0) / dv : inf;
   const float delta_i = du != 0.f ? std::abs(1.f / du) : inf;
   const float delta_j = dv != 0.f ? std::abs(1.f / dv) : inf;
-
   float ta = t_enter;
-  while (ta <= t_leave) {
+  for (;;) {
     const float tb = std::min({t_next_i, t_next_j, t_leave});
+    if (visit(i, j, ta, tb)) return true;
+    if (tb >= t_leave) return false;
+    ta = tb;
+    if (t_next_i <= t_next_j) {
+      i += step_i;
+      t_next_i += delta_i;
+    } else {
+      j += step_j;
+      t_next_j += delta_j;
+    }
+    if (i < 0 || i >= nx || j < 0 || j >= ny) return false;
+  }
+}
+
+// the highest ground in each block of kGroundBlock x kGroundBlock cells of the grid, as a height
+// above the grade's plane (a bump's height, not the grade's rise over the block), so that a ray
+// passes over a block it stays above without visiting its cells
+constexpr int kGroundBlock = 8;
+struct GroundBlocks {
+  int nx = 0, ny = 0;
+  std::vector<float> max_above;
+
+  explicit GroundBlocks(const tracks::GroundGrid& g)
+      : nx((g.nx - 1 + kGroundBlock - 1) / kGroundBlock),
+        ny((g.ny - 1 + kGroundBlock - 1) / kGroundBlock),
+        max_above(static_cast<size_t>(nx) * ny, -std::numeric_limits<float>::infinity()) {
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i) {
+        const double plane =
+            g.slope.x() * (g.x0 + i * g.cell_m) + g.slope.y() * (g.y0 + j * g.cell_m) + g.plane_z0;
+        const auto above = static_cast<float>(g.z[static_cast<size_t>(j) * g.nx + i] - plane);
+        // a vertex on a block's edge belongs to the blocks either side
+        for (int bj = std::max(0, (j - 1) / kGroundBlock); bj <= std::min(ny - 1, j / kGroundBlock);
+             ++bj)
+          for (int bi = std::max(0, (i - 1) / kGroundBlock);
+               bi <= std::min(nx - 1, i / kGroundBlock); ++bi) {
+            float& m = max_above[static_cast<size_t>(bj) * nx + bi];
+            m = std::max(m, above);
+          }
+      }
+  }
+};
+
+// where a ray from origin along dir first comes down onto the grid's surface between t_enter and
+// t_leave (each cell two triangles split along its diagonal from (i, j) to (i + 1, j + 1), as the
+// ground model splits it): the blocks its track crosses, in order, and in each block it may reach
+// down to, its cells, each one's piece or two of the ray tested against the triangle under it.
+// `above` and `climb`: the origin's height above the grade's plane and the ray's rise over it per
+// metre. The range and the triangle's upward normal (not unit length); false when it stays above
+bool meet_grid(const tracks::GroundGrid& g, const GroundBlocks& blocks,
+               const Eigen::Vector3f& origin, const Eigen::Vector3f& dir, float above, float climb,
+               float t_enter, float t_leave, float& t_hit, Eigen::Vector3f& normal) {
+  // the ray in cell units
+  const float cell = static_cast<float>(g.cell_m);
+  const float u0 = (origin.x() - static_cast<float>(g.x0)) / cell;
+  const float v0 = (origin.y() - static_cast<float>(g.y0)) / cell;
+  const float du = dir.x() / cell, dv = dir.y() / cell;
+
+  // one cell: the piece or two of the ray over it, split where it crosses the diagonal, each
+  // against the triangle under it (the ray's height above a triangle is linear along it)
+  const auto cell_hit = [&](int i, int j, float ta, float tb) {
     const size_t k = static_cast<size_t>(j) * g.nx + i;
     const float z00 = g.z[k], z10 = g.z[k + 1], z01 = g.z[k + g.nx], z11 = g.z[k + g.nx + 1];
-
-    // the piece or two of the ray over the cell, split where it crosses the diagonal
+    const float lowest_ray = origin.z() + dir.z() * (dir.z() < 0.f ? tb : ta);
+    if (lowest_ray > std::max({z00, z10, z01, z11})) return false;
     float cuts[3] = {ta, tb, tb};
     int pieces = 1;
     const float fu0 = u0 - static_cast<float>(i), fv0 = v0 - static_cast<float>(j);
@@ -260,15 +313,12 @@ bool meet_grid(const tracks::GroundGrid& g, const Eigen::Vector3f& origin,
     }
     for (int p = 0; p < pieces; ++p) {
       const float pa = cuts[p], pb = cuts[p + 1];
-      // the triangle under the piece: its slopes per cell and its height at the cell's corner
       const float tm = 0.5f * (pa + pb);
       const bool lower = fu0 + tm * du >= fv0 + tm * dv;
       const float su = lower ? z10 - z00 : z11 - z01;
       const float sv = lower ? z11 - z10 : z01 - z00;
-      // the ray's height above the triangle at both ends of the piece (linear between them)
       const auto above = [&](float t) {
-        const float fu = fu0 + t * du, fv = fv0 + t * dv;
-        return origin.z() + t * dir.z() - (z00 + su * fu + sv * fv);
+        return origin.z() + t * dir.z() - (z00 + su * (fu0 + t * du) + sv * (fv0 + t * dv));
       };
       const float ha = above(pa), hb = above(pb);
       if (ha >= 0.f && hb <= 0.f && ha > hb) {
@@ -277,21 +327,23 @@ bool meet_grid(const tracks::GroundGrid& g, const Eigen::Vector3f& origin,
         return true;
       }
     }
+    return false;
+  };
 
-    // on to the next cell
-    ta = tb;
-    if (tb >= t_leave) break;
-    if (t_next_i <= t_next_j) {
-      i += step_i;
-      t_next_i += delta_i;
-    } else {
-      j += step_j;
-      t_next_j += delta_j;
-    }
-    if (i < 0 || i > g.nx - 2 || j < 0 || j > g.ny - 2) break;
-  }
-  return false;
+  // the blocks, and the cells of those the ray comes down to
+  const float b = static_cast<float>(kGroundBlock);
+  return march(u0 / b, v0 / b, du / b, dv / b, t_enter, t_leave, blocks.nx, blocks.ny,
+               [&](int bi, int bj, float ta, float tb) {
+                 // the ray's lowest over the block, above the grade's plane (a millimetre for
+                 // the rounding of single precision)
+                 const float lowest = above + climb * (climb < 0.f ? tb : ta);
+                 if (lowest > blocks.max_above[static_cast<size_t>(bj) * blocks.nx + bi] + 1e-3f)
+                   return false;
+                 return march(u0, v0, du, dv, ta, tb, g.nx - 1, g.ny - 1, cell_hit);
+               });
 }
+
+}  // namespace
 
 struct Lidar::Impl {
   // one beam of a column, in ring order
@@ -322,6 +374,7 @@ struct Lidar::Impl {
   // the ground's grid when it is not flat (empty: the plane z = 0, met analytically), its
   // grade's plane and the band about that plane that holds the whole grid
   tracks::GroundGrid ground_grid;
+  std::optional<GroundBlocks> ground_blocks;
   bool uneven = false;
   float grade_x = 0.f, grade_y = 0.f, grade_z0 = 0.f;
   float band_lo = 0.f, band_hi = 0.f;
@@ -478,7 +531,8 @@ void Lidar::Impl::trace_ground(ChunkRays& rays, int first, const Eigen::Vector3f
     const Eigen::Vector3f dir(rays.dir_x[slot], rays.dir_y[slot], rays.dir_z[slot]);
     float t = 0.f;
     Eigen::Vector3f normal;
-    if (!meet_grid(ground_grid, origin, dir, enter, leave, t, normal)) continue;
+    if (!meet_grid(ground_grid, *ground_blocks, origin, dir, above, climb, enter, leave, t, normal))
+      continue;
     rays.label[slot] = core::PointCloudLabels::kGroundLabel;
     rays.range[slot] = t;
     rays.intensity[slot] = ray_bounds.ground_scale * std::abs(dir.dot(normal)) / normal.norm() /
@@ -490,6 +544,7 @@ void Lidar::Impl::trace_ground(ChunkRays& rays, int first, const Eigen::Vector3f
 void Lidar::Impl::build_ground(const tracks::GroundModel& ground) {
   const tracks::GroundGrid& g = ground.grid();
   ground_grid = g;
+  ground_blocks.emplace(g);
   uneven = true;
   grade_x = static_cast<float>(g.slope.x());
   grade_y = static_cast<float>(g.slope.y());
