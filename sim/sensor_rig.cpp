@@ -5,9 +5,9 @@
 #include <chrono>
 #include <cstdio>
 #include <fstream>
-#include <functional>
 #include <iterator>
 #include <nlohmann/json.hpp>
+#include <functional>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -68,8 +68,7 @@ void write_pcd(const fs::path& file, const core::PointCloud& cloud,
   std::string text;
   text.reserve(cloud.points.size() * 48 + 256);
   const size_t n = cloud.points.size();
-  text +=
-      "# .PCD v0.7 - conesim LiDAR sweep (label: true cone id, -1 ground, -2 and below clutter)\n";
+  text += "# .PCD v0.7 - conesim LiDAR sweep (label: true cone id, -1 ground, -2 and below clutter)\n";
   text += "VERSION 0.7\nFIELDS x y z intensity ring time label\n";
   text += "SIZE 4 4 4 4 2 4 4\nTYPE F F F F U F I\nCOUNT 1 1 1 1 1 1 1\n";
   text += "WIDTH " + std::to_string(n) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\n";
@@ -143,16 +142,15 @@ std::vector<TrueBox> true_boxes(const core::StereoFrame& frame, const core::Pose
     const Eigen::Vector3d base(c.position.x(), c.position.y(), 0.0);
     const Eigen::Vector3d centre = to_camera * (base - left_in_track.position);
     if (centre.z() < 0.5 || centre.norm() > 40.0) continue;
-    TrueBox b{c.id,       c.cls, (c.position - left_in_track.position.head<2>()).norm(),
-              centre.z(), 1e9,   1e9,
-              -1e9,       -1e9,  1.0};
+    TrueBox b{c.id, c.cls, (c.position - left_in_track.position.head<2>()).norm(), centre.z(),
+              1e9, 1e9, -1e9, -1e9, 1.0};
     bool behind = false;
     for (int i = 0; i <= 8; ++i) {
       // eight points round the base, then the apex
       const double a = i * 2.0 * M_PI / 8.0;
-      const Eigen::Vector3d offset = i == 8 ? Eigen::Vector3d(0, 0, size.height_m)
-                                            : Eigen::Vector3d(0.5 * size.base_m * std::cos(a),
-                                                              0.5 * size.base_m * std::sin(a), 0.0);
+      const Eigen::Vector3d offset =
+          i == 8 ? Eigen::Vector3d(0, 0, size.height_m)
+                 : Eigen::Vector3d(0.5 * size.base_m * std::cos(a), 0.5 * size.base_m * std::sin(a), 0.0);
       const Eigen::Vector3d p = base + offset;
       const Eigen::Vector3d q = to_camera * (p - left_in_track.position);
       if (q.z() <= 0.05) {
@@ -254,8 +252,7 @@ void render_camera_review(const fs::path& raw_png, const fs::path& out_png, int 
             "$detected using 1:2:3:4:5 with vectors nohead lw 2 lc rgb variable "
             "title 'detected: class #track-id range (solid, class colour)', "
             "$truth using 1:2:3:4 with vectors nohead lw 1.5 dt 2 lc rgb '#ff40ff' "
-            "title 'true: projected from the track, hidden by nearer cones left out (dashed "
-            "magenta)'\n";
+            "title 'true: projected from the track, hidden by nearer cones left out (dashed magenta)'\n";
   for (PlotData* d : {&true_edges, &found_edges})
     if (d->rows.empty()) d->rows.push_back({-1e6, -1e6, 0.0, 0.0, 0.0});
   render_png(script.str(), {found_edges, true_edges}, out_png, kCameraReviewScale * width,
@@ -274,16 +271,14 @@ std::string lidar_review_script(int index, bool with_detections, bool with_clutt
   const std::string range = std::to_string(kReviewRangeM);
   std::string s = "set title 'LiDAR sweep " + std::to_string(index) +
                   ": sensor frame, x forward, y left [m]'\n"
-                  "set lmargin at screen " +
-                  screen_x(kReviewPlotPx[0]) + "\nset rmargin at screen " +
-                  screen_x(kReviewPlotPx[2]) + "\nset tmargin at screen " +
-                  screen_y(kReviewPlotPx[1]) + "\nset bmargin at screen " +
-                  screen_y(kReviewPlotPx[3]) + "\n" + "set xrange [-" + range + ":" + range +
-                  "]\nset yrange [-" + range + ":" + range + "]\nset grid\nset key at screen " +
-                  screen_x(kReviewPlotPx[2] + 16) + ", screen " + screen_y(kReviewPlotPx[1]) +
-                  " left top Left reverse box\n";
-  if (!with_detections)
-    s += "set label 1 'no detector ran on this sweep' at graph 0.02, graph 0.97\n";
+                  "set lmargin at screen " + screen_x(kReviewPlotPx[0]) +
+                  "\nset rmargin at screen " + screen_x(kReviewPlotPx[2]) +
+                  "\nset tmargin at screen " + screen_y(kReviewPlotPx[1]) +
+                  "\nset bmargin at screen " + screen_y(kReviewPlotPx[3]) + "\n" +
+                  "set xrange [-" + range + ":" + range + "]\nset yrange [-" + range + ":" +
+                  range + "]\nset grid\nset key at screen " + screen_x(kReviewPlotPx[2] + 16) +
+                  ", screen " + screen_y(kReviewPlotPx[1]) + " left top Left reverse box\n";
+  if (!with_detections) s += "set label 1 'no detector ran on this sweep' at graph 0.02, graph 0.97\n";
   s += "plot $ground using 1:2 with points pt 7 ps 0.12 lc rgb '#c8c8c8' title 'ground returns', "
        "$returns using 1:2 with points pt 7 ps 0.2 lc rgb '#404040' title 'cone returns', ";
   if (with_clutter)
@@ -308,7 +303,8 @@ std::string lidar_review_script(int index, bool with_detections, bool with_clutt
 std::vector<PlotData> lidar_review_data(const PlotData& ground, const PlotData& returns,
                                         const std::array<PlotData, 4>& by_class,
                                         const PlotData& found, const PlotData& missed,
-                                        const PlotData& false_positive, const PlotData& clutter) {
+                                        const PlotData& false_positive,
+                                        const PlotData& clutter) {
   std::vector<PlotData> data{ground, returns};
   if (!clutter.rows.empty()) data.push_back(clutter);
   data.insert(data.end(), by_class.begin(), by_class.end());
@@ -655,8 +651,9 @@ void SensorRig::dump_sweep(int index, const sensors::LidarScan& scan,
   // cones (found, false positive) and the cones it missed
   std::optional<LidarSweepOutcome> outcome;
   if (detections) {
-    outcome = judge_lidar_sweep(scan, *detections, track_,
-                                [this](int id) { return referee_ && referee_->is_knocked(id); });
+    outcome = judge_lidar_sweep(scan, *detections, track_, [this](int id) {
+      return referee_ && referee_->is_knocked(id);
+    });
     nlohmann::json cones = nlohmann::json::array();
     for (size_t i = 0; i < detections->cones.size(); ++i) {
       const auto& c = detections->cones[i];
@@ -668,8 +665,8 @@ void SensorRig::dump_sweep(int index, const sensors::LidarScan& scan,
                        {"class", std::string(core::to_string(c.observation.cls))},
                        {"points", c.points},
                        {"height_m", c.height_m},
-                       {"true_cone_id",
-                        truth < 0 ? nlohmann::json(-1) : nlohmann::json(track_.file_id(truth))}});
+                       {"true_cone_id", truth < 0 ? nlohmann::json(-1)
+                                                  : nlohmann::json(track_.file_id(truth))}});
     }
     with_detections["detections"] = cones;
     with_detections["detections_stamp_us"] = detections->stamp;
@@ -707,20 +704,18 @@ void SensorRig::dump_sweep(int index, const sensors::LidarScan& scan,
       const auto& p = scan.cloud.points[i];
       if (std::abs(p.x) > kReviewRangeM || std::abs(p.y) > kReviewRangeM) continue;
       const int label = scan.labels.cone_id[i];
-      (label >= 0                      ? returns
-       : core::clutter_of_label(label) ? clutter
-                                       : ground)
+      (label >= 0 ? returns : core::clutter_of_label(label) ? clutter : ground)
           .rows.push_back({p.x, p.y});
     }
     if (detections)
       for (size_t i = 0; i < detections->cones.size(); ++i)
         (outcome->detection_cone[i] >= 0 ? found : false_positive)
-            .rows.push_back(
-                {detections->cones[i].centre_sensor.x(), detections->cones[i].centre_sensor.y()});
-    render_png(
-        lidar_review_script(index, detections.has_value(), !clutter.rows.empty()),
-        lidar_review_data(ground, returns, by_class, found, missed_xy, false_positive, clutter),
-        dir / frame_name(index, "png"), kReviewImagePx[0], kReviewImagePx[1]);
+            .rows.push_back({detections->cones[i].centre_sensor.x(),
+                             detections->cones[i].centre_sensor.y()});
+    render_png(lidar_review_script(index, detections.has_value(), !clutter.rows.empty()),
+               lidar_review_data(ground, returns, by_class, found, missed_xy, false_positive,
+                                 clutter),
+               dir / frame_name(index, "png"), kReviewImagePx[0], kReviewImagePx[1]);
   }
 }
 
@@ -872,8 +867,7 @@ void SensorRig::sense_cones(TimeUs t, const VehicleSim& car, const Referee& refe
                                   {"true_vehicle_pose", pose2_json(pose)},
                                   {"frame", "vehicle (rear axle centre), x forward, y left"},
                                   {"cones", cones}};
-    write_text(run_dir_ / "images/detections" / frame_name(index, "json"),
-               json_text(frame, 1) + "\n");
+    write_text(run_dir_ / "images/detections" / frame_name(index, "json"), json_text(frame, 1) + "\n");
   }
   enqueue(t + cone_latency_us_, {std::move(obs), std::move(labels), pose}, 2);
 }

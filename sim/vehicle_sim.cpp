@@ -123,9 +123,7 @@ VehicleSim::~VehicleSim() {
   mj_deleteModel(model_);
 }
 
-double VehicleSim::timestep_s() const {
-  return model_->opt.timestep;
-}
+double VehicleSim::timestep_s() const { return model_->opt.timestep; }
 
 void VehicleSim::step(const core::VehicleCommand& command, bool imu) {
   // the sensors (IMU, encoders) are outputs only: skipping them leaves the motion unchanged
