@@ -79,8 +79,11 @@ bool ViewVolume::may_see(const Eigen::Vector3d& centre, double radius) const {
   return !outside(p.x(), tan_half_x) && !outside(p.y(), tan_half_y);
 }
 
-ConeSceneWriter::ConeSceneWriter(const mjModel* model, const std::vector<tracks::Cone>& cones)
+ConeSceneWriter::ConeSceneWriter(const mjModel* model, const std::vector<tracks::Cone>& cones,
+                                 const tracks::GroundModel& ground)
     : cones_(cones) {
+  for (const tracks::Cone& cone : cones_)
+    base_z_.push_back(ground.height(cone.position.x(), cone.position.y()));
   for (int c = 0; c < static_cast<int>(models_.size()); ++c) {
     const auto cls = static_cast<core::ConeClass>(c);
     const core::ConeGeometry shape = core::cone_geometry(cls);
@@ -106,10 +109,11 @@ int ConeSceneWriter::append(mjvScene* scene, const IsKnocked& is_knocked,
                             const ViewVolume& view) const {
   constexpr float kWhite[4] = {1.f, 1.f, 1.f, 1.f};  // the texture carries the colour
   int dropped = 0;
-  for (const tracks::Cone& cone : cones_) {
+  for (size_t k = 0; k < cones_.size(); ++k) {
     // skip knocked cones and those no camera can see
+    const tracks::Cone& cone = cones_[k];
     const ConeModel& model = models_[static_cast<size_t>(cone.cls)];
-    const Eigen::Vector3d base(cone.position.x(), cone.position.y(), 0.0);
+    const Eigen::Vector3d base(cone.position.x(), cone.position.y(), base_z_[k]);
     if (is_knocked && is_knocked(cone.id)) continue;
     if (!view.may_see(base + Eigen::Vector3d(0.0, 0.0, model.centre_height_m),
                       model.bounding_radius_m))
@@ -141,10 +145,11 @@ int scenery_geom_count(const std::vector<tracks::SceneryObject>& scenery) {
 }
 
 int append_scenery(mjvScene* scene, const std::vector<tracks::SceneryObject>& scenery,
-                   const ViewVolume& view) {
+                   const ViewVolume& view, const tracks::GroundModel& ground) {
   int dropped = 0;
   for (const tracks::SceneryObject& object : scenery) {
-    const Eigen::Vector3d base(object.pose.x, object.pose.y, 0.0);
+    const Eigen::Vector3d base(object.pose.x, object.pose.y,
+                               ground.height(object.pose.x, object.pose.y));
     const double half_height = 0.5 * object.height_m;
     if (!view.may_see(base + Eigen::Vector3d(0.0, 0.0, half_height),
                       std::hypot(object.radius_m, half_height)))

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/cone.hpp"
+#include "tracks/ground.hpp"
 #include "tracks/scenery.hpp"
 #include "tracks/track.hpp"
 
@@ -41,8 +42,10 @@ class ConeSceneWriter {
  public:
   /// Finds the cone meshes and textures in the model and recovers the frame MuJoCo stored each
   /// mesh in (the compiler moves a mesh to its inertial frame). Throws std::runtime_error when
-  /// the model lacks the assets of vehicle_models::cone_assets().
-  ConeSceneWriter(const mjModel* model, const std::vector<tracks::Cone>& cones);
+  /// the model lacks the assets of vehicle_models::cone_assets(). Each cone stands on the
+  /// ground (its base at the ground's height under its centre).
+  ConeSceneWriter(const mjModel* model, const std::vector<tracks::Cone>& cones,
+                  const tracks::GroundModel& ground = {});
 
   /// Number of scene geoms that all cones together need (one per cone).
   int geom_count() const { return static_cast<int>(cones_.size()); }
@@ -63,6 +66,8 @@ class ConeSceneWriter {
   };
 
   std::vector<tracks::Cone> cones_;
+  // the ground's height under each cone, in cones_ order
+  std::vector<double> base_z_;
   std::array<ConeModel, 5> models_;
 };
 
@@ -71,8 +76,9 @@ int scenery_geom_count(const std::vector<tracks::SceneryObject>& scenery);
 
 /// Appends the solids of every scenery object the view volume may contain, as plain coloured
 /// boxes and cylinders (a frustum as the cylinder of its mean radius). They are drawn only: the
-/// physics model never holds them. Returns the number of solids that did not fit in the scene.
+/// physics model never holds them; each stands on the ground at its place. Returns the number of
+/// solids that did not fit in the scene.
 int append_scenery(mjvScene* scene, const std::vector<tracks::SceneryObject>& scenery,
-                   const ViewVolume& view);
+                   const ViewVolume& view, const tracks::GroundModel& ground = {});
 
 }  // namespace conesim::sensors

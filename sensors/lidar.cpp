@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -56,6 +57,8 @@ RTCGeometry make_triangle_geometry(RTCDevice device, const std::vector<Eigen::Ve
 // rectangle and the ground's intensity before the incidence and the range fall-off
 struct RayBounds {
   float max_range = 0.f, top_z = 0.f;
+  // the plane below which there is no ground (z = 0 for the flat ground)
+  float floor_z = 0.f;
   float lo_x = 0.f, lo_y = 0.f, hi_x = 0.f, hi_y = 0.f;
   float falloff = 0.f, ground_scale = 0.f;
 };
@@ -75,7 +78,7 @@ void cast_rays(int count, const float* __restrict cos_elevation,
   const float ox = origin.x(), oy = origin.y(), oz = origin.z();
   const float hx = heading.x(), hy = heading.y(), hz = heading.z();
   const float ux = up.x(), uy = up.y(), uz = up.z();
-  const float max_range = bounds.max_range, top_z = bounds.top_z;
+  const float max_range = bounds.max_range, top_z = bounds.top_z, floor_z = bounds.floor_z;
   const float lo_x = bounds.lo_x, lo_y = bounds.lo_y, hi_x = bounds.hi_x, hi_y = bounds.hi_y;
   const float falloff = bounds.falloff, ground_scale = bounds.ground_scale;
   constexpr float kGroundSlackM = 1e-3f;
@@ -89,9 +92,10 @@ void cast_rays(int count, const float* __restrict cos_elevation,
     dir_y[ch] = dy;
     dir_z[ch] = dz;
 
-    // how far it can find anything: down to just past the ground plane, or up to where it
-    // climbs above the tallest cone (0 when it starts above everything and does not descend)
-    const float t = -oz / dz;
+    // how far it can find anything: down to just past the ground plane (the floor under a
+    // ground that is not flat), or up to where it climbs above the tallest cone (0 when it
+    // starts above everything and does not descend)
+    const float t = (floor_z - oz) / dz;
     const float down = t * 1.0001f + kGroundSlackM;
     const float climb = (top_z - oz) / dz;
     const float rising = climb < max_range ? climb : max_range;
@@ -197,6 +201,150 @@ bool tan_angle_to(float dx, float dy, float axis_x, float axis_y, float& tan_ang
 
 }  // namespace
 
+namespace {
+
+// the cells of a grid of nx x ny unit cells that a ray's track (u0 + t du, v0 + t dv) crosses
+// between t_enter and t_leave, in order: visit(i, j, ta, tb) for each cell and the stretch of the
+// ray over it, until a visit returns true (then true)
+template <class Visit>
+bool march(float u0, float v0, float du, float dv, float t_enter, float t_leave, int nx, int ny,
+           Visit&& visit) {
+  // the stretch over the grid
+  const auto clip = [&t_enter, &t_leave](float p0, float dp, float hi) {
+    if (dp == 0.f) {
+      if (p0 < 0.f || p0 > hi) t_leave = -1.f;
+      return;
+    }
+    const float a = (0.f - p0) / dp, b = (hi - p0) / dp;
+    t_enter = std::max(t_enter, std::min(a, b));
+    t_leave = std::min(t_leave, std::max(a, b));
+  };
+  clip(u0, du, static_cast<float>(nx));
+  clip(v0, dv, static_cast<float>(ny));
+  if (!(t_enter <= t_leave)) return false;
+
+  // the first cell and the steps to the next column and row of cells
+  const float start = t_enter + 1e-5f * (t_leave - t_enter);
+  int i = std::clamp(static_cast<int>(std::floor(u0 + start * du)), 0, nx - 1);
+  int j = std::clamp(static_cast<int>(std::floor(v0 + start * dv)), 0, ny - 1);
+  const int step_i = du > 0.f ? 1 : -1, step_j = dv > 0.f ? 1 : -1;
+  const float inf = std::numeric_limits<float>::infinity();
+  float t_next_i = du != 0.f ? (static_cast<float>(step_i > 0 ? i + 1 : i) - u0) / du : inf;
+  float t_next_j = dv != 0.f ? (static_cast<float>(step_j > 0 ? j + 1 : j) - v0) / dv : inf;
+  const float delta_i = du != 0.f ? std::abs(1.f / du) : inf;
+  const float delta_j = dv != 0.f ? std::abs(1.f / dv) : inf;
+  float ta = t_enter;
+  for (;;) {
+    const float tb = std::min({t_next_i, t_next_j, t_leave});
+    if (visit(i, j, ta, tb)) return true;
+    if (tb >= t_leave) return false;
+    ta = tb;
+    if (t_next_i <= t_next_j) {
+      i += step_i;
+      t_next_i += delta_i;
+    } else {
+      j += step_j;
+      t_next_j += delta_j;
+    }
+    if (i < 0 || i >= nx || j < 0 || j >= ny) return false;
+  }
+}
+
+// the highest ground in each block of kGroundBlock x kGroundBlock cells of the grid, as a height
+// above the grade's plane (a bump's height, not the grade's rise over the block), so that a ray
+// passes over a block it stays above without visiting its cells
+constexpr int kGroundBlock = 8;
+struct GroundBlocks {
+  int nx = 0, ny = 0;
+  std::vector<float> max_above;
+
+  explicit GroundBlocks(const tracks::GroundGrid& g)
+      : nx((g.nx - 1 + kGroundBlock - 1) / kGroundBlock),
+        ny((g.ny - 1 + kGroundBlock - 1) / kGroundBlock),
+        max_above(static_cast<size_t>(nx) * ny, -std::numeric_limits<float>::infinity()) {
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i) {
+        const double plane =
+            g.slope.x() * (g.x0 + i * g.cell_m) + g.slope.y() * (g.y0 + j * g.cell_m) + g.plane_z0;
+        const auto above = static_cast<float>(g.z[static_cast<size_t>(j) * g.nx + i] - plane);
+        // a vertex on a block's edge belongs to the blocks either side
+        for (int bj = std::max(0, (j - 1) / kGroundBlock); bj <= std::min(ny - 1, j / kGroundBlock);
+             ++bj)
+          for (int bi = std::max(0, (i - 1) / kGroundBlock);
+               bi <= std::min(nx - 1, i / kGroundBlock); ++bi) {
+            float& m = max_above[static_cast<size_t>(bj) * nx + bi];
+            m = std::max(m, above);
+          }
+      }
+  }
+};
+
+// where a ray from origin along dir first comes down onto the grid's surface between t_enter and
+// t_leave (each cell two triangles split along its diagonal from (i, j) to (i + 1, j + 1), as the
+// ground model splits it): the blocks its track crosses, in order, and in each block it may reach
+// down to, its cells, each one's piece or two of the ray tested against the triangle under it.
+// `above` and `climb`: the origin's height above the grade's plane and the ray's rise over it per
+// metre. The range and the triangle's upward normal (not unit length); false when it stays above
+bool meet_grid(const tracks::GroundGrid& g, const GroundBlocks& blocks,
+               const Eigen::Vector3f& origin, const Eigen::Vector3f& dir, float above, float climb,
+               float t_enter, float t_leave, float& t_hit, Eigen::Vector3f& normal) {
+  // the ray in cell units
+  const float cell = static_cast<float>(g.cell_m);
+  const float u0 = (origin.x() - static_cast<float>(g.x0)) / cell;
+  const float v0 = (origin.y() - static_cast<float>(g.y0)) / cell;
+  const float du = dir.x() / cell, dv = dir.y() / cell;
+
+  // one cell: the piece or two of the ray over it, split where it crosses the diagonal, each
+  // against the triangle under it (the ray's height above a triangle is linear along it)
+  const auto cell_hit = [&](int i, int j, float ta, float tb) {
+    const size_t k = static_cast<size_t>(j) * g.nx + i;
+    const float z00 = g.z[k], z10 = g.z[k + 1], z01 = g.z[k + g.nx], z11 = g.z[k + g.nx + 1];
+    const float lowest_ray = origin.z() + dir.z() * (dir.z() < 0.f ? tb : ta);
+    if (lowest_ray > std::max({z00, z10, z01, z11})) return false;
+    float cuts[3] = {ta, tb, tb};
+    int pieces = 1;
+    const float fu0 = u0 - static_cast<float>(i), fv0 = v0 - static_cast<float>(j);
+    if (du != dv) {
+      const float td = (fv0 - fu0) / (du - dv);
+      if (td > ta && td < tb) {
+        cuts[1] = td;
+        pieces = 2;
+      }
+    }
+    for (int p = 0; p < pieces; ++p) {
+      const float pa = cuts[p], pb = cuts[p + 1];
+      const float tm = 0.5f * (pa + pb);
+      const bool lower = fu0 + tm * du >= fv0 + tm * dv;
+      const float su = lower ? z10 - z00 : z11 - z01;
+      const float sv = lower ? z11 - z10 : z01 - z00;
+      const auto above = [&](float t) {
+        return origin.z() + t * dir.z() - (z00 + su * (fu0 + t * du) + sv * (fv0 + t * dv));
+      };
+      const float ha = above(pa), hb = above(pb);
+      if (ha >= 0.f && hb <= 0.f && ha > hb) {
+        t_hit = pa + (pb - pa) * ha / (ha - hb);
+        normal = Eigen::Vector3f(-su / cell, -sv / cell, 1.f);
+        return true;
+      }
+    }
+    return false;
+  };
+
+  // the blocks, and the cells of those the ray comes down to
+  const float b = static_cast<float>(kGroundBlock);
+  return march(u0 / b, v0 / b, du / b, dv / b, t_enter, t_leave, blocks.nx, blocks.ny,
+               [&](int bi, int bj, float ta, float tb) {
+                 // the ray's lowest over the block, above the grade's plane (a millimetre for
+                 // the rounding of single precision)
+                 const float lowest = above + climb * (climb < 0.f ? tb : ta);
+                 if (lowest > blocks.max_above[static_cast<size_t>(bj) * blocks.nx + bi] + 1e-3f)
+                   return false;
+                 return march(u0, v0, du, dv, ta, tb, g.nx - 1, g.ny - 1, cell_hit);
+               });
+}
+
+}  // namespace
+
 struct Lidar::Impl {
   // one beam of a column, in ring order
   struct Channel {
@@ -211,9 +359,11 @@ struct Lidar::Impl {
     int cls = 0;
     float x = 0.f, y = 0.f;
     // every point of the cone lies within this horizontal distance of (x, y), and below top_m
+    // (a height in the track frame: the ground under the cone, z, plus the cone's own)
     float footprint_m = 0.f;
     float top_m = 0.f;
     bool present = true;
+    float z = 0.f;
   };
 
   LidarConfig config;
@@ -221,6 +371,13 @@ struct Lidar::Impl {
   // one scene per cone class, holding its mesh in the cone's own frame, then one per scenery
   // object (its mesh about its place)
   std::vector<RTCScene> class_scenes;
+  // the ground's grid when it is not flat (empty: the plane z = 0, met analytically), its
+  // grade's plane and the band about that plane that holds the whole grid
+  tracks::GroundGrid ground_grid;
+  std::optional<GroundBlocks> ground_blocks;
+  bool uneven = false;
+  float grade_x = 0.f, grade_y = 0.f, grade_z0 = 0.f;
+  float band_lo = 0.f, band_hi = 0.f;
   std::vector<Channel> channels;
   // the same, one array per term, for the loops over a column's rays
   std::vector<float> channel_cos, channel_sin;
@@ -270,7 +427,12 @@ struct Lidar::Impl {
   };
 
   void build_beams();
-  void build_scene(const tracks::Track& track, const std::vector<tracks::SceneryObject>& scenery);
+  void build_scene(const tracks::Track& track, const std::vector<tracks::SceneryObject>& scenery,
+                   const tracks::GroundModel& ground);
+  void build_ground(const tracks::GroundModel& ground);
+  static RTCRayHit ray_hit(const Eigen::Vector3f& origin, const ChunkRays& rays, int slot,
+                           float tnear, float tfar);
+  void trace_ground(ChunkRays& rays, int first, const Eigen::Vector3f& origin) const;
   void throw_on_device_error(const char* what) const;
   float intensity_of(float reflectivity_of_surface, float cos_incidence, float range) const;
   float cast_column(ChunkRays& rays, int first, const Eigen::Vector3f& origin,
@@ -302,26 +464,33 @@ float Lidar::Impl::cast_column(ChunkRays& rays, int first, const Eigen::Vector3f
   return reach;
 }
 
-// the cone's mesh, if the ray meets it nearer than reach (then reach becomes its range): the ray
-// moved into the cone's frame, which is the track frame shifted to the cone's place
-void Lidar::Impl::hit_cone(const SceneCone& cone, const Eigen::Vector3f& origin,
-                           RTCIntersectContext& context, ChunkRays& rays, int slot,
-                           float& reach) const {
+// the Embree ray of a slot from origin over [tnear, tfar], no hit yet
+RTCRayHit Lidar::Impl::ray_hit(const Eigen::Vector3f& origin, const ChunkRays& rays, int slot,
+                               float tnear, float tfar) {
   RTCRayHit ray;
-  ray.ray.org_x = origin.x() - cone.x;
-  ray.ray.org_y = origin.y() - cone.y;
+  ray.ray.org_x = origin.x();
+  ray.ray.org_y = origin.y();
   ray.ray.org_z = origin.z();
   ray.ray.dir_x = rays.dir_x[slot];
   ray.ray.dir_y = rays.dir_y[slot];
   ray.ray.dir_z = rays.dir_z[slot];
-  ray.ray.tnear = 0.f;
-  ray.ray.tfar = reach;
+  ray.ray.tnear = tnear;
+  ray.ray.tfar = tfar;
   ray.ray.time = 0.f;
   ray.ray.mask = 0xFFFFFFFFu;
   ray.ray.id = 0;
   ray.ray.flags = 0;
   ray.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   ray.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  return ray;
+}
+
+// the cone's mesh, if the ray meets it nearer than reach (then reach becomes its range): the ray
+// moved into the cone's frame, which is the track frame shifted to the cone's place
+void Lidar::Impl::hit_cone(const SceneCone& cone, const Eigen::Vector3f& origin,
+                           RTCIntersectContext& context, ChunkRays& rays, int slot,
+                           float& reach) const {
+  RTCRayHit ray = ray_hit(origin - Eigen::Vector3f(cone.x, cone.y, cone.z), rays, slot, 0.f, reach);
   rtcIntersect1(class_scenes[cone.cls], &context, &ray);
   if (ray.hit.geomID == RTC_INVALID_GEOMETRY_ID) return;
 
@@ -334,6 +503,55 @@ void Lidar::Impl::hit_cone(const SceneCone& cone, const Eigen::Vector3f& origin,
   rays.range[slot] = ray.ray.tfar;
   rays.intensity[slot] =
       intensity_of(class_reflectivity[cone.cls][ray.hit.primID], cos_incidence, ray.ray.tfar);
+}
+
+// a ground that is not flat: each ray of a column that can find anything is marched over the
+// ground's grid instead of meeting the plane z = 0 (label, range and intensity as the plane's)
+void Lidar::Impl::trace_ground(ChunkRays& rays, int first, const Eigen::Vector3f& origin) const {
+  const int count = static_cast<int>(channels.size());
+  // the origin's height above the grade's plane
+  const float above = origin.z() - (grade_x * origin.x() + grade_y * origin.y() + grade_z0);
+  for (int slot = first; slot < first + count; ++slot) {
+    rays.label[slot] = kNoReturn;
+    const float length = rays.length[slot];
+    if (!(length > 0.f)) continue;
+
+    // the stretch of the ray within the band about the grade's plane that holds the ground:
+    // the only place it can meet it (none for most rays that climb away from it)
+    const float climb = rays.dir_z[slot] - grade_x * rays.dir_x[slot] - grade_y * rays.dir_y[slot];
+    float enter = 0.f, leave = length;
+    if (climb != 0.f) {
+      const float to_lo = (band_lo - above) / climb, to_hi = (band_hi - above) / climb;
+      enter = std::max(0.f, std::min(to_lo, to_hi));
+      leave = std::min(length, std::max(to_lo, to_hi));
+    } else if (above < band_lo || above > band_hi) {
+      continue;
+    }
+    if (!(enter <= leave)) continue;
+    const Eigen::Vector3f dir(rays.dir_x[slot], rays.dir_y[slot], rays.dir_z[slot]);
+    float t = 0.f;
+    Eigen::Vector3f normal;
+    if (!meet_grid(ground_grid, *ground_blocks, origin, dir, above, climb, enter, leave, t, normal))
+      continue;
+    rays.label[slot] = core::PointCloudLabels::kGroundLabel;
+    rays.range[slot] = t;
+    rays.intensity[slot] = ray_bounds.ground_scale * std::abs(dir.dot(normal)) / normal.norm() /
+                           (1.f + t * t * ray_bounds.falloff);
+  }
+}
+
+// the ground's grid and the band about its grade's plane that holds it
+void Lidar::Impl::build_ground(const tracks::GroundModel& ground) {
+  const tracks::GroundGrid& g = ground.grid();
+  ground_grid = g;
+  ground_blocks.emplace(g);
+  uneven = true;
+  grade_x = static_cast<float>(g.slope.x());
+  grade_y = static_cast<float>(g.slope.y());
+  grade_z0 = static_cast<float>(g.plane_z0);
+  // a centimetre beyond the band: far more than single precision loses at these heights
+  band_lo = static_cast<float>(g.residual_min) - 0.01f;
+  band_hi = static_cast<float>(g.residual_max) + 0.01f;
 }
 
 void Lidar::Impl::build_beams() {
@@ -375,9 +593,17 @@ void Lidar::Impl::build_beams() {
 }
 
 void Lidar::Impl::build_scene(const tracks::Track& track,
-                              const std::vector<tracks::SceneryObject>& scenery) {
+                              const std::vector<tracks::SceneryObject>& scenery,
+                              const tracks::GroundModel& ground) {
   device = rtcNewDevice("threads=1");
   if (!device) throw std::runtime_error("lidar: Embree device could not be created");
+
+  // a ground that is not flat: its mesh, and the floor below its lowest point
+  if (!ground.flat()) {
+    build_ground(ground);
+    ray_bounds.floor_z = static_cast<float>(ground.grid().min_z) - 0.01f;
+    ray_bounds.top_z = static_cast<float>(ground.grid().max_z) + 0.01f;
+  }
 
   // ground: a rectangle over the cones and the start pose, reaching the max range beyond them
   Eigen::Vector2d lo(track.start.x, track.start.y), hi = lo;
@@ -423,8 +649,9 @@ void Lidar::Impl::build_scene(const tracks::Track& track,
     const float x = static_cast<float>(cone.position.x());
     const float y = static_cast<float>(cone.position.y());
     cone_index[cone.id] = static_cast<int>(cones.size());
-    const float top = static_cast<float>(cone_shape(cone.cls).height_m + kTopSlackM);
-    cones.push_back({cone.id, k, x, y, footprint[k], top, true});
+    const float z = static_cast<float>(ground.height(cone.position.x(), cone.position.y()));
+    const float top = static_cast<float>(cone_shape(cone.cls).height_m + kTopSlackM) + z;
+    cones.push_back({cone.id, k, x, y, footprint[k], top, true, z});
     ray_bounds.top_z = std::max(ray_bounds.top_z, top);
   }
 
@@ -446,10 +673,11 @@ void Lidar::Impl::build_scene(const tracks::Track& track,
     rtcAttachGeometry(class_scenes.back(), geom);
     rtcReleaseGeometry(geom);
     rtcCommitScene(class_scenes.back());
+    const float z = static_cast<float>(ground.height(object.pose.x, object.pose.y));
     cones.push_back({core::clutter_label(object.cls), k, static_cast<float>(object.pose.x),
-                     static_cast<float>(object.pose.y), reach, top + static_cast<float>(kTopSlackM),
-                     true});
-    ray_bounds.top_z = std::max(ray_bounds.top_z, top + static_cast<float>(kTopSlackM));
+                     static_cast<float>(object.pose.y), reach,
+                     top + static_cast<float>(kTopSlackM) + z, true, z});
+    ray_bounds.top_z = std::max(ray_bounds.top_z, top + static_cast<float>(kTopSlackM) + z);
   }
   throw_on_device_error("building the scene");
 }
@@ -462,13 +690,13 @@ void Lidar::Impl::throw_on_device_error(const char* what) const {
 }
 
 Lidar::Lidar(const LidarConfig& config, const tracks::Track& track,
-             const std::vector<tracks::SceneryObject>& scenery)
+             const std::vector<tracks::SceneryObject>& scenery, const tracks::GroundModel& ground)
     : impl_(std::make_unique<Impl>()) {
   if (const std::string error = config.validate(); !error.empty())
     throw std::invalid_argument("lidar: " + error);
   impl_->config = config;
   impl_->build_beams();
-  impl_->build_scene(track, scenery);
+  impl_->build_scene(track, scenery, ground);
 }
 
 Lidar::~Lidar() = default;
@@ -594,6 +822,7 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
       fan.origin_x = origin.x();
       fan.origin_y = origin.y();
       fan.reach = im.cast_column(rays, j * channel_count, origin, heading, up);
+      if (im.uneven) im.trace_ground(rays, j * channel_count, origin);
 
       // headings of the beams turn monotonically with elevation: the lowest and the highest
       // bound the column's fan
@@ -659,7 +888,7 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
     for (int j = 0; j < chunk; ++j) {
       const Eigen::Vector3f& origin = rays.origin[j];
       const int first = j * channel_count, last = first + channel_count;
-      const bool anywhere = !(origin.z() > 0.f);
+      const bool anywhere = !(origin.z() > im.ray_bounds.floor_z);
       column_cones.clear();
       for (const Impl::SceneCone* cone : chunk_cones)
         if (column_fans[j].may_meet(cone->x, cone->y, cone->footprint_m + kFootprintSlackM))

@@ -21,6 +21,7 @@
 #include "core/time.hpp"
 #include "sensors/lidar_config.hpp"
 #include "sensors/pose_history.hpp"
+#include "tracks/ground.hpp"
 #include "tracks/scenery.hpp"
 #include "tracks/track.hpp"
 
@@ -67,10 +68,14 @@ class Lidar {
  public:
   /// Builds the scene: a ground rectangle covering the track and every cone at its true size,
   /// and the scenery objects (tracks/scenery.hpp), whose points carry their class's clutter
-  /// label (core/clutter.hpp), never a cone id. Throws std::invalid_argument for a
-  /// configuration that fails validate() and std::runtime_error when Embree cannot start.
+  /// label (core/clutter.hpp), never a cone id. A ground that is not flat (tracks/ground.hpp)
+  /// replaces the plane: its grid becomes a triangle mesh every ray is cast through (labelled
+  /// ground; no ground beyond the grid), and the cones and objects stand on it. Throws
+  /// std::invalid_argument for a configuration that fails validate() and std::runtime_error when
+  /// Embree cannot start.
   Lidar(const LidarConfig& config, const tracks::Track& track,
-        const std::vector<tracks::SceneryObject>& scenery = {});
+        const std::vector<tracks::SceneryObject>& scenery = {},
+        const tracks::GroundModel& ground = {});
   ~Lidar();
   Lidar(Lidar&&) noexcept;
   Lidar& operator=(Lidar&&) noexcept;

@@ -82,8 +82,9 @@ core::Pose3 stereo_camera_in_vehicle(const StereoCameraConfig& c, bool left) {
 
 StereoCamera::StereoCamera(const StereoCameraConfig& config, const mjModel* model,
                            const tracks::Track& track,
-                           const std::vector<tracks::SceneryObject>& scenery)
-    : config_(config), model_(model), scenery_(scenery) {
+                           const std::vector<tracks::SceneryObject>& scenery,
+                           const tracks::GroundModel& ground)
+    : config_(config), model_(model), scenery_(scenery), ground_(ground) {
   // check the configuration against itself and the model's offscreen buffer
   if (const std::string error = config.validate(); !error.empty())
     throw std::invalid_argument("stereo camera: " + error);
@@ -111,7 +112,7 @@ StereoCamera::StereoCamera(const StereoCameraConfig& config, const mjModel* mode
   }
 
   // the abstract scene: the car's world plus room for every cone's geoms
-  cones_ = std::make_unique<ConeSceneWriter>(model, track.cones);
+  cones_ = std::make_unique<ConeSceneWriter>(model, track.cones, ground);
   mjv_defaultScene(&scene_);
   mjv_makeScene(model, &scene_,
                 model->ngeom + kSpareGeoms + cones_->geom_count() + scenery_geom_count(scenery));
@@ -166,7 +167,7 @@ void StereoCamera::render(const mjData* data, const core::Pose3& vehicle_in_trac
   labels.left_in_track = vehicle_in_track.compose(left_in_vehicle_);
   labels.right_in_track = vehicle_in_track.compose(right_in_vehicle_);
   dropped_geoms_ += cones_->append(&scene_, is_knocked, rig_view(labels.left_in_track));
-  dropped_geoms_ += append_scenery(&scene_, scenery_, rig_view(labels.left_in_track));
+  dropped_geoms_ += append_scenery(&scene_, scenery_, rig_view(labels.left_in_track), ground_);
   simplify_ground(0.5 * (labels.left_in_track.position + labels.right_in_track.position));
 
   // one pass per eye; depth only for the left one and only on request

@@ -60,9 +60,11 @@ class StereoCamera {
   /// Sets up rendering of `model` (built by vehicle_models::build_mjcf, which adds the cone
   /// meshes) with the cones of `track`. Throws std::invalid_argument for a bad configuration or
   /// an image larger than the model's offscreen buffer, std::runtime_error when GL fails.
-  /// The scenery objects (tracks/scenery.hpp) are drawn as well.
+  /// The scenery objects (tracks/scenery.hpp) are drawn as well; cones and objects stand on
+  /// the ground (the model's height field when it is not flat).
   StereoCamera(const StereoCameraConfig& config, const mjModel* model, const tracks::Track& track,
-               const std::vector<tracks::SceneryObject>& scenery = {});
+               const std::vector<tracks::SceneryObject>& scenery = {},
+               const tracks::GroundModel& ground = {});
   ~StereoCamera();
   StereoCamera(const StereoCamera&) = delete;
   StereoCamera& operator=(const StereoCamera&) = delete;
@@ -102,6 +104,7 @@ class StereoCamera {
   std::unique_ptr<OsMesaContext> gl_;
   std::unique_ptr<ConeSceneWriter> cones_;
   std::vector<tracks::SceneryObject> scenery_;
+  tracks::GroundModel ground_;
   mjvScene scene_;
   mjrContext context_;
   mjvOption option_;

@@ -616,7 +616,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
   const vehicle_models::VehicleParams& vp = s.vehicle;
   const core::Pose2 rear_axle_start =
       track.start.compose({-vp.front_overhang_from_rear_axle_m, 0.0, 0.0});
-  VehicleSim car(vp, rear_axle_start);
+  VehicleSim car(vp, rear_axle_start, tracks::GroundModel(track, s.ground, s.seed));
   RefereeParams referee_params = s.referee;
   referee_params.trackdrive_laps = s.driver.trackdrive_laps;
   Referee referee(track, s.event, vp, referee_params);
@@ -1014,6 +1014,12 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     m["world"] = {{"clutter_objects", rig.scenery().size()},
                   {"clutter_objects_per_100m", s.clutter.objects_per_100m},
                   {"clutter_by_class", by_class}};
+  }
+  // the ground under the track (a run on flat ground has no such key)
+  if (!car.ground().flat()) {
+    const tracks::GroundGrid& g = car.ground().grid();
+    m["world"]["ground_relief_m"] = g.max_z - g.min_z;
+    m["world"]["ground_cell_m"] = g.cell_m;
   }
   // the plug-ins in the loop, by name (a run of the built-in stack has no such key)
   if (s.perception_plugin || s.slam_plugin || s.driver_plugin) {

@@ -1021,22 +1021,43 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
       {"world",
        [&](const YAML::Node& n) {
          const Where w{&context, "world"};
-         read_section(n, w, {{"clutter", [&](const YAML::Node& v) {
-                                const Where c{&context, "world.clutter"};
-                                auto& cl = s.clutter;
-                                read_section(v, c,
-                                             {number("objects_per_100m", cl.objects_per_100m, c),
-                                              number("margin_m", cl.margin_m, c),
-                                              number("spread_m", cl.spread_m, c),
-                                              {"seed_offset",
-                                               [&](const YAML::Node& x) {
-                                                 cl.seed_offset =
-                                                     read_integer<uint64_t>(x, c, "seed_offset");
-                                               }},
-                                              {"grass_edge", [&](const YAML::Node& x) {
-                                                 cl.grass_edge = read_bool(x, c, "grass_edge");
-                                               }}});
-                              }}});
+         read_section(
+             n, w,
+             {{"clutter",
+               [&](const YAML::Node& v) {
+                 const Where c{&context, "world.clutter"};
+                 auto& cl = s.clutter;
+                 read_section(v, c,
+                              {number("objects_per_100m", cl.objects_per_100m, c),
+                               number("margin_m", cl.margin_m, c),
+                               number("spread_m", cl.spread_m, c),
+                               {"seed_offset",
+                                [&](const YAML::Node& x) {
+                                  cl.seed_offset = read_integer<uint64_t>(x, c, "seed_offset");
+                                }},
+                               {"grass_edge", [&](const YAML::Node& x) {
+                                  cl.grass_edge = read_bool(x, c, "grass_edge");
+                                }}});
+               }},
+              {"ground", [&](const YAML::Node& v) {
+                 const Where c{&context, "world.ground"};
+                 auto& g = s.ground;
+                 read_section(v, c,
+                              {number("grade_percent", g.grade_percent, c),
+                               {"grade_heading_deg",
+                                [&](const YAML::Node& x) {
+                                  g.grade_heading_deg = read_number(x, c, "grade_heading_deg");
+                                }},
+                               number("crown_percent", g.crown_percent, c),
+                               number("undulation_amplitude_m", g.undulation_amplitude_m, c),
+                               number("undulation_wavelength_m", g.undulation_wavelength_m, c),
+                               number("bump_height_m", g.bump_height_m, c),
+                               number("bump_radius_m", g.bump_radius_m, c),
+                               number("bumps_per_100m2", g.bumps_per_100m2, c),
+                               {"seed_offset", [&](const YAML::Node& x) {
+                                  g.seed_offset = read_integer<uint64_t>(x, c, "seed_offset");
+                                }}});
+               }}});
        }},
       {"sensors",
        [&](const YAML::Node& n) {
@@ -1322,6 +1343,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   // the scenery's density and where it may stand
   if (const std::string e = s.clutter.validate(); !e.empty())
     context.fail_check("world.clutter", e);
+  if (const std::string e = s.ground.validate(); !e.empty()) context.fail_check("world.ground", e);
 
   // the referee's rules, with the lap count the driver is given; times within what the sim
   // clock (integer microseconds) holds many times over

@@ -19,6 +19,7 @@
 #include "sim/referee.hpp"
 #include "slam/factory.hpp"
 #include "tracks/generator.hpp"
+#include "tracks/ground.hpp"
 #include "tracks/scenery.hpp"
 #include "vehicle_models/vehicle_params.hpp"
 
@@ -158,6 +159,9 @@ struct Scenario {
   /// Scenery and clutter beside the track (`world.clutter`): seen by the LiDAR and the
   /// camera, never by the physics. A density of 0 (the default) places nothing.
   tracks::ClutterConfig clutter;
+  /// The ground under the track (`world.ground`): one height model for the physics, the LiDAR,
+  /// the camera and the cones. All zero (the default) is the flat plane z = 0.
+  tracks::GroundConfig ground;
   /// Sensor and vehicle faults (`faults:`), in the order read: kinds in fault_kind_names()
   /// order, each kind's windows in the order given. Empty: none.
   std::vector<Fault> faults;

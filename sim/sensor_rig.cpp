@@ -385,7 +385,7 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
       throw std::invalid_argument("sensors.lidar.mount: unknown mount " + s.sensors.lidar_mount);
     config->mount = *mount;
     lidar_mount_ = *mount;
-    lidar_ = std::make_unique<sensors::Lidar>(*config, track, scenery_);
+    lidar_ = std::make_unique<sensors::Lidar>(*config, track, scenery_, car.ground());
     poses_ = sensors::PoseHistory(2 * config->sweep_period_us());
     poses_.push(0, car.vehicle_pose3());
     lidar_latency_us_ = core::from_seconds(s.sensors.lidar_latency_s);
@@ -397,8 +397,8 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
   if (s.sensors.camera_enabled || raw_camera || tap_camera || dump_.sensors.count("camera")) {
     if (const std::string e = s.sensors.camera.validate(); !e.empty())
       throw std::invalid_argument("sensors.camera." + e);
-    camera_ =
-        std::make_unique<sensors::StereoCamera>(s.sensors.camera, car.model(), track, scenery_);
+    camera_ = std::make_unique<sensors::StereoCamera>(s.sensors.camera, car.model(), track,
+                                                      scenery_, car.ground());
     camera_period_us_ = core::from_seconds(1.0 / s.sensors.camera_rate_hz);
     with_depth_ = s.sensors.camera_depth;
     camera_latency_us_ = core::from_seconds(s.sensors.camera_latency_s);

@@ -46,11 +46,35 @@ mjModel* load_mjcf_model(const std::string& xml) {
   return model;
 }
 
-VehicleSim::VehicleSim(const vehicle_models::VehicleParams& params, const core::Pose2& start)
-    : params_(params) {
+VehicleSim::VehicleSim(const vehicle_models::VehicleParams& params, const core::Pose2& start,
+                       const tracks::GroundModel& ground)
+    : params_(params), ground_(ground) {
   if (const std::string error = params.validate(); !error.empty())
     throw std::invalid_argument("vehicle parameters: " + error);
-  model_ = load_mjcf_model(vehicle_models::build_mjcf(params));
+
+  // the ground: the plane, or a height field over the ground model's grid, its heights scaled
+  // into 0..1 of their range
+  vehicle_models::MjcfOptions options;
+  const tracks::GroundGrid& grid = ground.grid();
+  const double elevation_m = std::max(grid.max_z - grid.min_z, 1e-3);
+  if (!ground.flat()) {
+    auto& h = options.ground;
+    h.nrow = grid.ny;
+    h.ncol = grid.nx;
+    h.half_x_m = 0.5 * (grid.nx - 1) * grid.cell_m;
+    h.half_y_m = 0.5 * (grid.ny - 1) * grid.cell_m;
+    h.centre_x_m = grid.x0 + h.half_x_m;
+    h.centre_y_m = grid.y0 + h.half_y_m;
+    h.elevation_m = elevation_m;
+    h.base_z_m = grid.min_z;
+  }
+  model_ = load_mjcf_model(vehicle_models::build_mjcf(params, options));
+  if (!ground.flat()) {
+    const int field = require_id(model_, mjOBJ_HFIELD, "ground");
+    float* heights = model_->hfield_data + model_->hfield_adr[field];
+    for (size_t k = 0; k < grid.z.size(); ++k)
+      heights[k] = static_cast<float>((grid.z[k] - grid.min_z) / elevation_m);
+  }
   data_ = mj_makeData(model_);
 
   // look up what the controller drives and reads
@@ -77,6 +101,16 @@ VehicleSim::VehicleSim(const vehicle_models::VehicleParams& params, const core::
   mjtNum* q = data_->qpos + model_->jnt_qposadr[free_joint];
   q[0] = start.x;
   q[1] = start.y;
+  if (!ground.flat()) {
+    // level, the wheel over the highest ground touching it (the others settle onto theirs)
+    double lift = -1e9;
+    for (double ax : {0.0, params.wheelbase_m})
+      for (double ay : {-0.5 * params.track_m, 0.5 * params.track_m}) {
+        const Eigen::Vector2d w = start.transform(Eigen::Vector2d(ax, ay));
+        lift = std::max(lift, ground.height(w.x(), w.y()));
+      }
+    q[2] += lift;
+  }
   q[3] = std::cos(0.5 * start.yaw);
   q[4] = 0.0;
   q[5] = 0.0;

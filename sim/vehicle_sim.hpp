@@ -14,6 +14,7 @@
 #include "core/autonomy_types.hpp"
 #include "core/geometry.hpp"
 #include "core/measurements.hpp"
+#include "tracks/ground.hpp"
 #include "vehicle_models/vehicle_params.hpp"
 
 namespace conesim::sim {
@@ -45,9 +46,11 @@ mjModel* load_mjcf_model(const std::string& xml);
 
 class VehicleSim {
  public:
-  /// Builds the model and places the rear axle centre at `start`, at rest. Throws
-  /// std::runtime_error with MuJoCo's message if the model does not load.
-  VehicleSim(const vehicle_models::VehicleParams& params, const core::Pose2& start);
+  /// Builds the model on the ground (a MuJoCo height field unless flat) and places the rear
+  /// axle centre at `start`, at rest, with its wheels on the ground. Throws std::runtime_error
+  /// with MuJoCo's message if the model does not load.
+  VehicleSim(const vehicle_models::VehicleParams& params, const core::Pose2& start,
+             const tracks::GroundModel& ground = {});
   ~VehicleSim();
   VehicleSim(const VehicleSim&) = delete;
   VehicleSim& operator=(const VehicleSim&) = delete;
@@ -75,12 +78,15 @@ class VehicleSim {
   const mjModel* model() const { return model_; }
   const mjData* data() const { return data_; }
   const vehicle_models::VehicleParams& params() const { return params_; }
+  /// The ground the car drives on (the sensors see the same).
+  const tracks::GroundModel& ground() const { return ground_; }
 
  private:
   void apply_controls(const core::VehicleCommand& command);
   void require_imu() const;
 
   vehicle_models::VehicleParams params_;
+  tracks::GroundModel ground_;
   mjModel* model_ = nullptr;
   mjData* data_ = nullptr;
   int chassis_body_ = -1;

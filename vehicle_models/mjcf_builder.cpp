@@ -11,12 +11,15 @@ namespace {
 
 constexpr double kGravity = 9.81;
 constexpr double kKnuckleMassKg = 2.0;
+// depth of a height field's box below its lowest point, metres
+constexpr double kHeightFieldBaseM = 1.0;
 
 }  // namespace
 
 std::string build_mjcf(const VehicleParams& p, const MjcfOptions& o) {
   std::ostringstream x;
   x.precision(10);
+  const bool hfield = o.ground.nrow > 1 && o.ground.ncol > 1;
 
   // masses: the chassis carries what the wheels and knuckles do not
   const double unsprung_kg = 4.0 * (p.wheel_mass_kg + kKnuckleMassKg);
@@ -48,7 +51,9 @@ std::string build_mjcf(const VehicleParams& p, const MjcfOptions& o) {
     << "\" cone=\"elliptic\" impratio=\"1\" integrator=\"Euler\" gravity=\"0 0 -9.81\" "
     // the tyres touch only the ground: the four pairs below, no broad phase
     << "collision=\"predefined\"/>\n"
-    << "  <size nconmax=\"32\" njmax=\"160\" nstack=\"20000\"/>\n"
+    // a height field gives a tyre a contact per prism it touches: room for them
+    << (hfield ? "  <size nconmax=\"256\" njmax=\"1024\" nstack=\"200000\"/>\n"
+               : "  <size nconmax=\"32\" njmax=\"160\" nstack=\"20000\"/>\n")
     << "  <visual>\n"
     << "    <global offwidth=\"" << o.offscreen_width_px << "\" offheight=\""
     << o.offscreen_height_px << "\"/>\n"
@@ -71,22 +76,36 @@ std::string build_mjcf(const VehicleParams& p, const MjcfOptions& o) {
     << "    <material name=\"body\" rgba=\"0.75 0.08 0.08 1\" specular=\"0.2\"/>\n"
     << "    <material name=\"tyre\" rgba=\"0.08 0.08 0.08 1\" specular=\"0\"/>\n"
     // cone meshes and textures for the camera: assets only, no geom uses them (not physics)
-    << cone_assets() << "  </asset>\n"
+    << cone_assets();
+  if (hfield)
+    x << "    <hfield name=\"ground\" nrow=\"" << o.ground.nrow << "\" ncol=\"" << o.ground.ncol
+      << "\" size=\"" << o.ground.half_x_m << " " << o.ground.half_y_m << " "
+      << o.ground.elevation_m << " " << kHeightFieldBaseM << "\"/>\n";
+  x << "  </asset>\n"
     << "  <worldbody>\n"
-    << "    <geom name=\"ground\" type=\"plane\" size=\"0 0 1\" material=\"asphalt\"/>\n"
-    << "    <body name=\"" << MjcfNames::kChassis << "\" pos=\"0 0 " << r << "\">\n"
+    << (hfield
+            ? ""
+            : "    <geom name=\"ground\" type=\"plane\" size=\"0 0 1\" material=\"asphalt\"/>\n");
+  if (hfield)
+    x << "    <geom name=\"ground\" type=\"hfield\" hfield=\"ground\" pos=\"" << o.ground.centre_x_m
+      << " " << o.ground.centre_y_m << " " << o.ground.base_z_m << "\" material=\"asphalt\"/>\n";
+  x << "    <body name=\"" << MjcfNames::kChassis << "\" pos=\"0 0 " << r << "\">\n"
     << "      <freejoint name=\"" << MjcfNames::kChassis << "\"/>\n"
     << "      <inertial pos=\"" << cog_x << " 0 " << cog_z << "\" mass=\"" << chassis_kg
-    << "\" diaginertia=\"" << ixx << " " << iyy << " " << izz << "\"/>\n"
+    << "\" diaginertia=\"" << ixx << " " << iyy << " " << izz
+    << "\"/>\n"
     // visual body: monocoque, nose, front wing and main hoop (no collisions)
     << "      <geom name=\"monocoque\" type=\"box\" size=\"" << 0.5 * p.wheelbase_m << " 0.3 0.2\" "
-    << "pos=\"" << 0.5 * p.wheelbase_m << " 0 0.05\" material=\"body\" contype=\"0\" "
+    << "pos=\"" << 0.5 * p.wheelbase_m
+    << " 0 0.05\" material=\"body\" contype=\"0\" "
        "conaffinity=\"0\" mass=\"0\"/>\n"
     << "      <geom name=\"front_wing\" type=\"box\" size=\"0.1 " << 0.5 * p.width_m
-    << " 0.02\" pos=\"" << p.front_overhang_from_rear_axle_m - 0.1 << " 0 -0.15\" "
+    << " 0.02\" pos=\"" << p.front_overhang_from_rear_axle_m - 0.1
+    << " 0 -0.15\" "
        "material=\"body\" contype=\"0\" conaffinity=\"0\" mass=\"0\"/>\n"
     << "      <geom name=\"main_hoop\" type=\"box\" size=\"0.04 0.25 0.35\" pos=\""
-    << 0.35 * p.wheelbase_m << " 0 0.45\" material=\"body\" contype=\"0\" conaffinity=\"0\" "
+    << 0.35 * p.wheelbase_m
+    << " 0 0.45\" material=\"body\" contype=\"0\" conaffinity=\"0\" "
        "mass=\"0\"/>\n"
     << "      <site name=\"" << MjcfNames::kImuSite << "\" pos=\"" << cog_x << " 0 " << cog_z
     << "\" size=\"0.02\"/>\n";

@@ -701,5 +701,79 @@ TEST(Lidar, SceneryOutOfRangeChangesNoPoint) {
   EXPECT_FALSE(same_points(today, scan_of(Lidar(config, track, one_of_each()))));
 }
 
+// ---------------------------------------------------------------------------------------------
+// ground that is not flat (issue 17)
+
+// A 2 % grade with undulations and bumps: every ground point lies on the height model within the
+// range noise (a ray meets the ground at a glancing angle, so the noise moves a point along the
+// ray: its height by at most the noise, and the ground under it by the slope times the noise),
+// most of them well away from z = 0, where the flat plane would have put them; every cone stands
+// on the ground and is seen within 10 m.
+TEST(Lidar, OnUnevenGroundThePointsLieOnTheHeightModel) {
+  // the grade is zero at the track's start: 40 m from the car, so that the ground around it
+  // lies half a metre and more from z = 0
+  tracks::Track track = ring_of_cones();
+  track.start = {-43.0, 0.0, 0.0};
+  tracks::GroundConfig shape;
+  shape.grade_percent = 2.0;
+  shape.grade_heading_deg = 30.0;
+  shape.undulation_amplitude_m = 0.1;
+  shape.bump_height_m = 0.04;
+  shape.bumps_per_100m2 = 5.0;
+  const tracks::GroundModel ground(track, shape, 3);
+  ASSERT_FALSE(ground.flat());
+  for (double sigma : {0.0, 0.015}) {
+    LidarConfig config;
+    config.range_noise_sigma_m = sigma;
+    const Lidar lidar(config, track, {}, ground);
+    Pose3 start = planar_pose(-3.0, 1.0, 0.2);
+    start.position.z() = ground.height(-3.0, 1.0);
+    const PoseHistory poses = drive(start, 0.0, 0, 200'000);
+    core::Rng rng(7);
+    const LidarScan scan = lidar.sweep(0, poses, rng);
+
+    // the grid holds heights in single precision: a few micrometres at these heights
+    const double tolerance = 5.0 * sigma * (1.0 + 0.1) + 1e-4;
+    const double facets = facet_deviation_m(cone_shape(ConeClass::kOrangeBig), 24);
+    int ground_points = 0, off_the_plane = 0;
+    std::vector<int> per_cone(track.cones.size() + 1, 0);
+    for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+      const Eigen::Vector3d p = in_track(lidar, poses, scan.cloud, scan.cloud.points[i]);
+      const int id = scan.labels.cone_id[i];
+      if (id == core::PointCloudLabels::kGroundLabel) {
+        ASSERT_NEAR(p.z(), ground.height(p.x(), p.y()), tolerance) << "ground point " << i;
+        ++ground_points;
+        off_the_plane += std::abs(p.z()) > tolerance + 0.02;
+        continue;
+      }
+      const tracks::Cone& cone = track.cone(id);
+      const Eigen::Vector3d base(cone.position.x(), cone.position.y(),
+                                 ground.height(cone.position.x(), cone.position.y()));
+      ASSERT_LT(cone_shape(cone.cls).surface_distance(p - base), 5.0 * sigma + facets + 1e-4)
+          << "cone " << id << " point " << (p - base).transpose();
+      ++per_cone[id];
+    }
+    EXPECT_GT(ground_points, 5000);
+    EXPECT_GT(off_the_plane, ground_points / 2);
+    for (const tracks::Cone& cone : track.cones) {
+      if ((cone.position - core::Vec2(-3.0, 1.0)).norm() < 10.0) {
+        EXPECT_GT(per_cone[cone.id], 0) << cone.id;
+      }
+    }
+  }
+}
+
+// The flat ground keeps its analytic path: a flat ground model gives the scan of no model,
+// bit for bit.
+TEST(Lidar, AFlatGroundModelChangesNoPoint) {
+  const tracks::Track track = ring_of_cones();
+  const tracks::GroundModel flat(track, tracks::GroundConfig{}, 3);
+  ASSERT_TRUE(flat.flat());
+  const Lidar with(LidarConfig{}, track, {}, flat), without(LidarConfig{}, track);
+  const PoseHistory poses = drive(planar_pose(0.0, 0.0, 0.0), 5.0, 0, 200'000);
+  core::Rng rng_a(7), rng_b(7);
+  EXPECT_TRUE(same_points(with.sweep(0, poses, rng_a), without.sweep(0, poses, rng_b)));
+}
+
 }  // namespace
 }  // namespace conesim::sensors

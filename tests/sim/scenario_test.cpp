@@ -136,6 +136,43 @@ TEST_F(ScenarioFile, ClutterDensityIsAScenarioKey) {
                         "margin_m, spread_m, seed_offset, grass_edge"));
 }
 
+// world.ground (issue 17): flat by default, every key read, a bad value refused at its key with
+// the range it must lie in
+TEST_F(ScenarioFile, GroundShapeIsAScenarioKey) {
+  const std::string head = "event: trackdrive\nperception: lidar\n";
+  EXPECT_TRUE(load_scenario(write(head)).ground.flat());
+  EXPECT_FALSE(load_scenario(write(head)).ground.grade_heading_deg.has_value());
+  const Scenario s = load_scenario(
+      write(head +
+            "world: {ground: {grade_percent: 2, grade_heading_deg: 90, crown_percent: 1.5,\n"
+            "  undulation_amplitude_m: 0.1, undulation_wavelength_m: 60, bump_height_m: 0.03,\n"
+            "  bump_radius_m: 0.6, bumps_per_100m2: 2, seed_offset: 3}}\n"));
+  EXPECT_FALSE(s.ground.flat());
+  EXPECT_DOUBLE_EQ(s.ground.grade_percent, 2.0);
+  EXPECT_DOUBLE_EQ(s.ground.grade_heading_deg.value_or(0.0), 90.0);
+  EXPECT_DOUBLE_EQ(s.ground.crown_percent, 1.5);
+  EXPECT_DOUBLE_EQ(s.ground.undulation_amplitude_m, 0.1);
+  EXPECT_DOUBLE_EQ(s.ground.undulation_wavelength_m, 60.0);
+  EXPECT_DOUBLE_EQ(s.ground.bump_height_m, 0.03);
+  EXPECT_DOUBLE_EQ(s.ground.bump_radius_m, 0.6);
+  EXPECT_DOUBLE_EQ(s.ground.bumps_per_100m2, 2.0);
+  EXPECT_EQ(s.ground.seed_offset, 3u);
+  using ::testing::HasSubstr;
+  EXPECT_THAT(error_of(head + "world: {ground: {grade_percent: 8}}\n"),
+              HasSubstr(":3: world.ground.grade_percent: expected a number in [0, 5], got 8"));
+  EXPECT_THAT(error_of(head, {"world.ground.crown_percent=-1"}),
+              HasSubstr("--set: world.ground.crown_percent: expected a number in [0, 5], got -1"));
+  EXPECT_THAT(error_of(head, {"world.ground.bump_height_m=0.5"}),
+              HasSubstr("world.ground.bump_height_m: expected a number in [0, 0.1], got 0.5"));
+  EXPECT_THAT(error_of(head, {"world.ground.bump_radius_m=0.05"}),
+              HasSubstr("world.ground.bump_radius_m: expected a number in [0.2, 2], got 0.05"));
+  EXPECT_THAT(error_of(head, {"world.ground.undulation_wavelength_m=2"}),
+              HasSubstr("world.ground.undulation_wavelength_m: expected a number in [10, 200]"));
+  EXPECT_THAT(error_of(head + "world: {ground: {slope: 1}}\n"),
+              HasSubstr("world.ground.slope: unknown key; expected one of: grade_percent, "
+                        "grade_heading_deg, crown_percent"));
+}
+
 TEST_F(ScenarioFile, BadAblationsNameTheKeyAndWhatWasExpected) {
   const std::string head = "event: trackdrive\nperception: cone_sensor\n";
   EXPECT_NE(error_of(head + "slam: {drive: graph, shadow: [graph+no_gps]}\n")

@@ -184,5 +184,76 @@ TEST(VehicleSim, TurnInFollowsTheDriversModelWithItsLag) {
   EXPECT_LT(with, without);
 }
 
+// ---------------------------------------------------------------------------------------------
+// ground that is not flat (issue 17)
+
+// a square of cones 80 m across about the origin: the ground model's extent
+tracks::Track open_ground() {
+  tracks::Track track;
+  int id = 0;
+  for (double x : {-40.0, 40.0})
+    for (double y : {-40.0, 40.0})
+      track.cones.push_back({id++, core::ConeClass::kOrangeBig, {x, y}, {}});
+  return track;
+}
+
+// a 2 % grade falling along +x: with no drive or brake asked (the drive makes up only for drag and
+// rolling resistance) the car rolls downhill at about g x 2 % less what its spinning wheels take;
+// on flat ground it stands still. Its vehicle frame stays on the ground under the rear axle.
+TEST(VehicleSim, OnATwoPercentGradeTheCarRollsDownhillOnTheGround) {
+  tracks::GroundConfig grade;
+  grade.grade_percent = 2.0;
+  grade.grade_heading_deg = 180.0;
+  const tracks::GroundModel ground(open_ground(), grade, 1);
+  VehicleSim sloped(VehicleParams{}, {}, ground), flat(VehicleParams{}, {});
+  const double seconds = 4.0;
+  double worst_height_m = 0.0;
+  for (int i = 0; i < static_cast<int>(seconds / sloped.timestep_s()); ++i) {
+    sloped.step({});
+    flat.step({});
+    const core::Pose3 p = sloped.vehicle_pose3();
+    if (i > 500)
+      worst_height_m = std::max(
+          worst_height_m, std::abs(p.position.z() - ground.height(p.position.x(), p.position.y())));
+  }
+  const double free_roll_m = 0.5 * 9.81 * 0.02 * seconds * seconds;
+  const double x = sloped.truth().pose.x;
+  std::printf(
+      "measured: %.2f m downhill in %.0f s (free roll %.2f m), frame within %.4f m of the "
+      "ground\n",
+      x, seconds, free_roll_m, worst_height_m);
+  EXPECT_GT(x, 0.6 * free_roll_m);
+  EXPECT_LT(x, 1.02 * free_roll_m);
+  EXPECT_LT(std::abs(flat.truth().pose.x), 0.05);
+  EXPECT_LT(worst_height_m, 0.01);
+  // the start pose sits above the start: 2 % x 40 m below the uphill edge
+  EXPECT_NEAR(ground.height(0.0, 0.0), 0.0, 1e-5);
+}
+
+// over bumps 4 cm high at 8 m/s the car keeps its wheels on the ground: its frame follows the
+// height model within the bumps' height, and it keeps its speed and line
+TEST(VehicleSim, OverBumpsTheCarFollowsTheGround) {
+  tracks::GroundConfig bumpy;
+  bumpy.grade_percent = 1.0;
+  bumpy.bump_height_m = 0.04;
+  bumpy.bumps_per_100m2 = 5.0;
+  const tracks::GroundModel ground(open_ground(), bumpy, 2);
+  VehicleSim car(VehicleParams{}, {-30.0, 0.0, 0.0}, ground);
+  double worst_m = 0.0;
+  for (int i = 0; i < 6000; ++i) {
+    car.step(cruise(car.truth(), 8.0, 0.0));
+    const core::Pose3 p = car.vehicle_pose3();
+    if (i > 500)
+      worst_m = std::max(worst_m,
+                         std::abs(p.position.z() - ground.height(p.position.x(), p.position.y())));
+  }
+  std::printf("measured: frame within %.3f m of the ground, %.2f m/s\n", worst_m,
+              car.truth().vx_mps);
+  EXPECT_LT(worst_m, 0.04 + 0.02);
+  EXPECT_NEAR(car.truth().vx_mps, 8.0, 0.3);
+  EXPECT_LT(std::abs(car.truth().pose.y), 0.5);
+  EXPECT_GT(car.truth().pose.x, 10.0);
+}
+
 }  // namespace
 }  // namespace conesim::sim
