@@ -17,14 +17,14 @@ namespace {
 constexpr double kMeshFitToleranceM = 1e-4;
 
 // appends a geom that is drawn only (no object of the model behind it), lit with `shine` as
-// its specular and shininess, and returns it
+// its specular and shininess, tagged with what it draws (kSceneryObjidBase), and returns it
 mjvGeom* append_static_geom(mjvScene* scene, int type, const mjtNum size[3], const mjtNum pos[3],
-                            const mjtNum mat[9], const float rgba[4], float shine) {
+                            const mjtNum mat[9], const float rgba[4], float shine, int tag) {
   mjvGeom* g = scene->geoms + scene->ngeom;
   mjv_initGeom(g, type, size, pos, mat, rgba);
   g->category = mjCAT_STATIC;
   g->objtype = mjOBJ_UNKNOWN;
-  g->objid = -1;
+  g->objid = tag;
   g->segid = scene->ngeom;
   g->specular = shine;
   g->shininess = shine;
@@ -129,7 +129,7 @@ int ConeSceneWriter::append(mjvScene* scene, const IsKnocked& is_knocked,
       pos[i] = base[i] + model.mesh_position[i];
       for (int j = 0; j < 3; ++j) mat[3 * i + j] = model.mesh_rotation(i, j);
     }
-    mjvGeom* g = append_static_geom(scene, mjGEOM_MESH, size, pos, mat, kWhite, 0.2f);
+    mjvGeom* g = append_static_geom(scene, mjGEOM_MESH, size, pos, mat, kWhite, 0.2f, cone.id);
     // MuJoCo 2.2 numbers mesh display lists in pairs (mesh, convex hull): 2 x mesh id
     g->dataid = 2 * model.mesh_id;
     g->texid = model.texture_id;
@@ -147,7 +147,8 @@ int scenery_geom_count(const std::vector<tracks::SceneryObject>& scenery) {
 int append_scenery(mjvScene* scene, const std::vector<tracks::SceneryObject>& scenery,
                    const ViewVolume& view, const tracks::GroundModel& ground) {
   int dropped = 0;
-  for (const tracks::SceneryObject& object : scenery) {
+  for (size_t index = 0; index < scenery.size(); ++index) {
+    const tracks::SceneryObject& object = scenery[index];
     const Eigen::Vector3d base(object.pose.x, object.pose.y,
                                ground.height(object.pose.x, object.pose.y));
     const double half_height = 0.5 * object.height_m;
@@ -179,7 +180,8 @@ int append_scenery(mjvScene* scene, const std::vector<tracks::SceneryObject>& sc
         size[1] = p.size.z();
         size[2] = 0.0;
       }
-      append_static_geom(scene, type, size, pos, mat, p.rgba.data(), 0.1f);
+      append_static_geom(scene, type, size, pos, mat, p.rgba.data(), 0.1f,
+                         kSceneryObjidBase - static_cast<int>(index));
     }
   }
   return dropped;

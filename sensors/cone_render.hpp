@@ -17,6 +17,11 @@
 
 namespace conesim::sensors {
 
+/// The scene geoms appended here say what they draw in their objid (objtype mjOBJ_UNKNOWN): a
+/// cone's geom carries the cone's id (>= 0), a scenery object's solids kSceneryObjidBase minus
+/// the object's index in the scenery list (the camera's segmentation render reads them).
+inline constexpr int kSceneryObjidBase = -100;
+
 /// True for a cone that has been knocked over and must not be drawn.
 using IsKnocked = std::function<bool(int cone_id)>;
 

@@ -174,6 +174,8 @@ void StereoCamera::render(const mjData* data, const core::Pose3& vehicle_in_trac
   render_eye(labels.left_in_track, frame.left, with_depth ? &frame.left_depth_m : nullptr);
   render_eye(labels.right_in_track, frame.right, nullptr);
   if (!with_depth) frame.left_depth_m.clear();
+  last_left_in_track_ = labels.left_in_track;
+  rendered_ = true;
 
   // calibration travels with the frame
   frame.stamp = stamp;
@@ -181,6 +183,64 @@ void StereoCamera::render(const mjData* data, const core::Pose3& vehicle_in_trac
   frame.left_in_vehicle = left_in_vehicle_;
   frame.right_in_vehicle = right_in_vehicle_;
   frame.baseline_m = config_.baseline_m;
+}
+
+void StereoCamera::render_segmentation(SegmentationImage& out) {
+  if (!rendered_) throw std::logic_error("stereo camera: render_segmentation before render");
+  gl_->make_current();
+  const int w = config_.width_px, h = config_.height_px;
+
+  // what each scene geom shows, and its segmentation id: MuJoCo paints a geom in the colour
+  // segid + 1 (red the low byte) with lighting, textures and blending off
+  const int ground_geom = mj_name2id(model_, mjOBJ_GEOM, "ground");
+  std::vector<int32_t> shows(static_cast<size_t>(scene_.ngeom));
+  std::vector<int> saved_segid(static_cast<size_t>(scene_.ngeom));
+  for (int i = 0; i < scene_.ngeom; ++i) {
+    mjvGeom& g = scene_.geoms[i];
+    if (g.objtype == mjOBJ_GEOM)
+      shows[static_cast<size_t>(i)] =
+          g.objid == ground_geom ? SegmentationImage::kGround : SegmentationImage::kCar;
+    else if (g.objtype == mjOBJ_UNKNOWN && (g.objid >= 0 || g.objid <= kSceneryObjidBase))
+      shows[static_cast<size_t>(i)] = g.objid;
+    else
+      shows[static_cast<size_t>(i)] = SegmentationImage::kNothing;
+    saved_segid[static_cast<size_t>(i)] = g.segid;
+    g.segid = i;
+  }
+  const mjtByte saved_segment = scene_.flags[mjRND_SEGMENT];
+  const mjtByte saved_idcolor = scene_.flags[mjRND_IDCOLOR];
+  scene_.flags[mjRND_SEGMENT] = 1;
+  scene_.flags[mjRND_IDCOLOR] = 1;
+
+  // the left eye, as render() drew it (render_eye poses both GL cameras and the headlight)
+  const Eigen::Vector3d forward = last_left_in_track_.orientation * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d up = last_left_in_track_.orientation * -Eigen::Vector3d::UnitY();
+  for (mjvGLCamera& cam : scene_.camera)
+    for (int i = 0; i < 3; ++i) {
+      cam.pos[i] = static_cast<float>(last_left_in_track_.position[i]);
+      cam.forward[i] = static_cast<float>(forward[i]);
+      cam.up[i] = static_cast<float>(up[i]);
+    }
+  const mjrRect viewport{0, 0, w, h};
+  mjr_render(viewport, &scene_, &context_);
+  glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba_scratch_.data());
+  scene_.flags[mjRND_SEGMENT] = saved_segment;
+  scene_.flags[mjRND_IDCOLOR] = saved_idcolor;
+  for (int i = 0; i < scene_.ngeom; ++i) scene_.geoms[i].segid = saved_segid[static_cast<size_t>(i)];
+
+  // decode, flipping rows to top to bottom; colour 0 (the cleared background) is the sky
+  out.width_px = w;
+  out.height_px = h;
+  out.object.resize(static_cast<size_t>(w) * h);
+  for (int r = 0; r < h; ++r) {
+    const uint8_t* src = rgba_scratch_.data() + 4 * static_cast<size_t>(h - 1 - r) * w;
+    int32_t* dst = out.object.data() + static_cast<size_t>(r) * w;
+    for (int c = 0; c < w; ++c, src += 4) {
+      const int id = (src[0] | (src[1] << 8) | (src[2] << 16)) - 1;
+      dst[c] = id >= 0 && id < scene_.ngeom ? shows[static_cast<size_t>(id)]
+                                            : SegmentationImage::kNothing;
+    }
+  }
 }
 
 ViewVolume StereoCamera::rig_view(const core::Pose3& left_in_track) const {

@@ -6,6 +6,7 @@
 
 #include <mujoco/mujoco.h>
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -52,6 +53,25 @@ core::CameraIntrinsics stereo_intrinsics(const StereoCameraConfig& config);
 /// z forward).
 core::Pose3 stereo_camera_in_vehicle(const StereoCameraConfig& config, bool left);
 
+/// What each pixel of the left image shows, object by object (StereoCamera::render_segmentation).
+struct SegmentationImage {
+  /// Nothing drawn: the sky.
+  static constexpr int32_t kNothing = -1;
+  /// The ground (plane or height field).
+  static constexpr int32_t kGround = -2;
+  /// The car itself (its nose, wheels or wing in view).
+  static constexpr int32_t kCar = -3;
+  /// A scenery object: kSceneryBase minus its index in the scenery list (tracks/scenery.hpp).
+  static constexpr int32_t kSceneryBase = kSceneryObjidBase;
+
+  int width_px = 0;
+  int height_px = 0;
+  /// Per pixel, rows top to bottom: a cone's id (>= 0) or one of the codes above.
+  std::vector<int32_t> object;
+
+  int32_t at(int x, int y) const { return object[static_cast<size_t>(y) * width_px + x]; }
+};
+
 /// Renders stereo frames of one car's world. Holds its own OSMesa context, MuJoCo render
 /// context, abstract scene, scratch mjData and a copy of the track's cones; the model must
 /// outlive it. Not thread safe: render from one thread at a time.
@@ -76,6 +96,11 @@ class StereoCamera {
   void render(const mjData* data, const core::Pose3& vehicle_in_track, core::TimeUs stamp,
               const IsKnocked& is_knocked, bool with_depth, core::StereoFrame& frame,
               core::StereoLabels& labels);
+
+  /// The left image of the last render() again, each pixel naming the object it shows (a
+  /// per-pixel segmentation drawn by MuJoCo with flat, unlit id colours, the same geometry and
+  /// depth test as the image). Call after render(); it changes neither the frame nor the scene.
+  void render_segmentation(SegmentationImage& out);
 
   /// The configuration in use.
   const StereoCameraConfig& config() const { return config_; }
@@ -115,6 +140,9 @@ class StereoCamera {
   std::vector<float> inverse_ray_length_;
   std::vector<float> depth_scratch_;
   long dropped_geoms_ = 0;
+  // the left eye of the last render(), for render_segmentation()
+  core::Pose3 last_left_in_track_;
+  bool rendered_ = false;
 };
 
 }  // namespace conesim::sensors

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <numbers>
 #include <optional>
 #include <set>
@@ -285,6 +286,65 @@ TEST(StereoCamera, GroundLooksLikeAsphaltAndTheSkyIsAbove) {
   }
   EXPECT_EQ(grey, samples);
   EXPECT_EQ(sky, samples);
+}
+
+// The segmentation render names the object of every pixel, in register with the image: each
+// cone's band centre carries its id, the barrier's red half its scenery code, the ground and
+// the sky theirs; every blue pixel of the image below the sky belongs to a blue cone and most of a blue
+// cone's pixels are blue or its white stripe; the frame drawn next is unchanged by it
+TEST(StereoCamera, SegmentationNamesTheObjectOfEveryPixel) {
+  const core::Pose2 pose{15.0, 4.5, 0.0};
+  const tracks::SceneryObject barrier =
+      tracks::make_scenery_object(core::ClutterClass::kBarrier, pose);
+  Rig rig({}, {}, {barrier});
+  const core::StereoFrame before = rig.frame;
+  SegmentationImage seg;
+  rig.camera.render_segmentation(seg);
+  ASSERT_EQ(seg.width_px, rig.config.width_px);
+  ASSERT_EQ(seg.object.size(), static_cast<size_t>(seg.width_px) * seg.height_px);
+
+  for (const int id : {kBlueAhead, kYellowLeft, kBigOrangeRight, kBlueRight}) {
+    const auto uv = rig.project(rig.lower_band_centre(id), true);
+    ASSERT_TRUE(uv.has_value());
+    EXPECT_EQ(seg.at(std::lround(uv->x()), std::lround(uv->y())), id) << "cone " << id;
+  }
+  const tracks::ScenePrimitive& red = barrier.parts.front();
+  const auto barrier_uv =
+      rig.project(Vector3d(pose.x + red.centre.x(), pose.y + red.centre.y(), red.centre.z()), true);
+  ASSERT_TRUE(barrier_uv.has_value());
+  EXPECT_EQ(seg.at(std::lround(barrier_uv->x()), std::lround(barrier_uv->y())),
+            SegmentationImage::kSceneryBase);
+  EXPECT_EQ(seg.at(20, seg.height_px * 3 / 4), SegmentationImage::kGround);
+  EXPECT_EQ(seg.at(20, 5), SegmentationImage::kNothing);
+
+  int blue = 0, blue_in_blue_cone = 0;
+  std::map<int, std::pair<int, int>> cone_pixels;  // id: (pixels, blue or white ones)
+  for (int v = 0; v < seg.height_px; ++v)
+    for (int u = 0; u < seg.width_px; ++u) {
+      const Rgb c = pixel(rig.frame.left, u, v);
+      const int id = seg.at(u, v);
+      if (is_blue(c) && id != SegmentationImage::kNothing) {  // (the painted sky is blue too)
+        ++blue;
+        blue_in_blue_cone += id == kBlueAhead || id == kBlueRight;
+      }
+      if (id == kBlueAhead || id == kBlueRight) {
+        auto& [n, coloured] = cone_pixels[id];
+        ++n;
+        coloured += is_blue(c) || (c.r > 150 && c.g > 150 && c.b > 150);
+      }
+    }
+  ASSERT_GT(blue, 200);
+  EXPECT_EQ(blue_in_blue_cone, blue);
+  for (const auto& [id, counts] : cone_pixels) {
+    EXPECT_GT(counts.first, 50) << "cone " << id;
+    // the silhouette's edge pixels blend with the ground: a ring one pixel wide
+    EXPECT_GE(counts.second, 0.8 * counts.first) << "cone " << id;
+  }
+
+  // the next frame is drawn as before (flags and segmentation ids restored)
+  rig.render({});
+  EXPECT_EQ(rig.frame.left.rgb, before.left.rgb);
+  EXPECT_EQ(rig.frame.right.rgb, before.right.rgb);
 }
 
 TEST(StereoCamera, WritesViewablePngs) {
