@@ -637,7 +637,7 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     else if (recorder->kinds().lidar)
       tap = recorder.get();
   }
-  SensorRig rig(s, track, car, options.dump, options.out_dir, tap);
+  SensorRig rig(s, track, car, options.dump, options.out_dir, tap, options.labelled);
   // the replay's camera frames, a few a second, when the run has the camera anyway
   if (recorder && rig.camera_on() && recorder->settings().camera_rate_hz > 0.0)
     rig.set_camera_observer(

@@ -48,6 +48,9 @@ struct RunOptions {
   /// An observer of the raw sensor data (the Python module's `observe=`), null for none: the
   /// sensors it asks for are switched on; it changes nothing else of the run.
   SensorTap* sensor_tap = nullptr;
+  /// A recorder of labelled frames (`conesim dataset`), null for none: the camera (and the
+  /// LiDAR when it wants sweeps) are switched on; it changes nothing else of the run.
+  LabelledDataSink* labelled = nullptr;
   /// Record the run for its 3D replay (replay.bin: LiDAR sweeps thinned, the SLAM maps as they
   /// grow) and write replay.html at the end (sim/replay.hpp, `conesim view`).
   bool replay = false;

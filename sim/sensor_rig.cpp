@@ -341,11 +341,13 @@ struct SensorRig::SweepInProgress {
 };
 
 SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const VehicleSim& car,
-                     const DumpOptions& dump, const fs::path& run_dir, SensorTap* tap)
+                     const DumpOptions& dump, const fs::path& run_dir, SensorTap* tap,
+                     LabelledDataSink* labelled)
     : track_(track),
       dump_(dump),
       run_dir_(run_dir),
       tap_(tap),
+      labelled_(labelled),
       lidar_rng_(core::derive_seed(s.seed, kLidarStream)),
       faults_(s.faults, s.seed),
       fault_counts_(faults_.zero_counts()) {
@@ -372,8 +374,8 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
   // raw-data perception switches on the sensors it needs
   const bool raw_lidar = s.perception == "lidar" || s.perception == "fused";
   const bool raw_camera = s.perception == "stereo" || s.perception == "fused";
-  const bool tap_lidar = tap_ && tap_->kinds().lidar;
-  const bool tap_camera = tap_ && tap_->kinds().camera;
+  const bool tap_lidar = (tap_ && tap_->kinds().lidar) || (labelled_ && labelled_->wants_lidar());
+  const bool tap_camera = (tap_ && tap_->kinds().camera) || labelled_;
 
   // the LiDAR sweeps from the first step on
   if (s.sensors.lidar_enabled || raw_lidar || tap_lidar || dump_.sensors.count("lidar")) {
@@ -578,6 +580,7 @@ void SensorRig::collect_sweep() {
     ++stats_.lidar_sweeps_lost;
     return;
   }
+  if (labelled_ && labelled_->wants_lidar()) labelled_->on_lidar(result.end_us, scan);
 
   // the tap gets the sweep as a perception plug-in does, when its latency has passed
   if (tap_ && tap_->kinds().lidar &&
@@ -727,6 +730,11 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
       with_depth_, frame_, frame_labels_);
   stats_.camera_ms_total += std::chrono::duration<double, std::milli>(clock::now() - start).count();
   const int index = stats_.camera_frames++;
+  // a recorder of labelled data gets the pair as rendered, with its segmentation
+  if (labelled_ && labelled_->wants_camera(t)) {
+    camera_->render_segmentation(segmentation_);
+    labelled_->on_camera(t, frame_, frame_labels_, segmentation_);
+  }
   if (!faults_.empty()) apply_camera_faults(t);
   // the tap gets the pair as the perception does (after the camera's faults)
   if (tap_ && tap_->kinds().camera) tap_->on_stereo(t + camera_latency_us_, to_sdk(frame_));

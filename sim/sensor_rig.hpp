@@ -76,6 +76,27 @@ struct CameraReplayFrame {
   std::vector<CameraBox> truth;
 };
 
+/// A recorder of labelled sensor data (`conesim dataset`, sim/dataset.hpp): it gets the frames
+/// it asks for with their exact labels, on the run's thread. Having one switches on the camera,
+/// and the LiDAR when it wants sweeps; it changes nothing else of the run.
+class LabelledDataSink {
+ public:
+  virtual ~LabelledDataSink() = default;
+  /// True when the stereo pair rendered at sim time t is wanted (the rig then draws its
+  /// segmentation too).
+  virtual bool wants_camera(core::TimeUs t) = 0;
+  /// A wanted pair as rendered (before the camera's faults), the true poses of both cameras,
+  /// and what each pixel of the left image shows.
+  virtual void on_camera(core::TimeUs t, const core::StereoFrame& frame,
+                         const core::StereoLabels& poses,
+                         const sensors::SegmentationImage& segmentation) = 0;
+  /// True when LiDAR sweeps are wanted.
+  virtual bool wants_lidar() const = 0;
+  /// Each LiDAR sweep that was not lost (after its faults): points in the sensor frame, a label
+  /// per point and the sensor's true pose at its start and end; end_us: its last column.
+  virtual void on_lidar(core::TimeUs end_us, const sensors::LidarScan& scan) = 0;
+};
+
 class SensorRig {
  public:
   /// Sets up the sensors the scenario, the dumps and the tap ask for. Throws
@@ -83,7 +104,7 @@ class SensorRig {
   /// of the raw LiDAR sweeps and stereo pairs (null for none).
   SensorRig(const Scenario& scenario, const tracks::Track& track, const VehicleSim& car,
             const DumpOptions& dump, const std::filesystem::path& run_dir,
-            SensorTap* tap = nullptr);
+            SensorTap* tap = nullptr, LabelledDataSink* labelled = nullptr);
   ~SensorRig();
 
   /// Runs what is due at sim time t (after the physics step that reached t).
@@ -160,6 +181,8 @@ class SensorRig {
   const Referee* referee_ = nullptr;
   std::unique_ptr<PerceptionRunner> perception_;
   SensorTap* tap_ = nullptr;
+  LabelledDataSink* labelled_ = nullptr;
+  sensors::SegmentationImage segmentation_;
   // the LiDAR's mount, and the tap's point buffer (reused from sweep to sweep)
   core::Pose3 lidar_mount_;
   std::vector<sdk::LidarPoint> tap_points_;

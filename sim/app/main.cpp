@@ -13,6 +13,7 @@
 #include "sim/autonomy.hpp"
 #include "sim/bench.hpp"
 #include "sim/compare.hpp"
+#include "sim/dataset.hpp"
 #include "sim/interrupt.hpp"
 #include "sim/json_text.hpp"
 #include "sim/regress.hpp"
@@ -548,7 +549,7 @@ void add_regress_command(CLI::App& app, int& status, int argc, char** argv) {
     }
     if (!baseline->empty()) o->baseline = *baseline;
     o->plot = !*no_plot;
-    for (int i = 0; i < argc; ++i) o->command_line += (i ? " " : "") + std::string(argv[i]);
+    for (int i = 0; i < argc; ++i) o->command_line.append(i ? " " : "").append(argv[i]);
     std::error_code ec;
     fs::path self = fs::read_symlink("/proc/self/exe", ec);
     if (ec) self = fs::absolute(argv[0]);
@@ -612,7 +613,7 @@ void add_merge_command(CLI::App& app, int& status, int argc, char** argv) {
   cmd->callback([=, &status] {
     if (!baseline->empty()) m->baseline = *baseline;
     if (!expect->empty()) m->expect = *expect;
-    for (int i = 0; i < argc; ++i) m->command_line += (i ? " " : "") + std::string(argv[i]);
+    for (int i = 0; i < argc; ++i) m->command_line.append(i ? " " : "").append(argv[i]);
     // compare shards or regress shards: their plan.json says which
     status = conesim::sim::holds_compare_plan(m->dirs)
                  ? conesim::sim::merge_compare(*m, std::cout, std::cerr)
@@ -678,7 +679,7 @@ void add_compare_command(CLI::App& app, int& status, int argc, char** argv) {
     check_sharding_options(cmd, *sharding, o->shard.active(), o->reuse, "--reuse",
                            !o->out_dir.empty());
     o->plot = !*no_plot;
-    for (int i = 0; i < argc; ++i) o->command_line += (i ? " " : "") + std::string(argv[i]);
+    for (int i = 0; i < argc; ++i) o->command_line.append(i ? " " : "").append(argv[i]);
     {
       int k = 1;
       while (k < argc && std::string(argv[k]) != "compare") ++k;
@@ -722,6 +723,65 @@ void add_compare_command(CLI::App& app, int& status, int argc, char** argv) {
       return;
     }
     status = sim::run_compare(self, *o, std::cout, std::cerr);
+  });
+}
+
+// `conesim dataset --frames N --runs M --out DIR`
+void add_dataset_command(CLI::App& app, int& status) {
+  auto* cmd = app.add_subcommand(
+      "dataset",
+      "Write labelled training data from closed-loop runs: left camera images with YOLO boxes, "
+      "class and instance masks, LiDAR sweeps as PCD with a label per point, a manifest with "
+      "poses and intrinsics, and a contact sheet (docs/dataset.md). Exit 0 when written, 1 when "
+      "the runs gave too few frames, 2 for bad input");
+  auto o = std::make_shared<conesim::sim::DatasetOptions>();
+  auto no_lidar = std::make_shared<bool>(false);
+  auto fixed_world = std::make_shared<bool>(false);
+  cmd->add_option("--frames", o->frames, "Labelled frames in all (default 1000)");
+  cmd->add_option("--runs", o->runs,
+                  "Runs they come from at least, each giving at most frames/runs (default 10)");
+  cmd->add_option("--seed", o->seed, "The dataset's seed: runs, tracks and worlds (default 1)");
+  cmd->add_option("--scenario", o->scenario,
+                  "Scenario each run starts from, a shipped name or a file (default autocross)");
+  cmd->add_option("--set", o->sets, "Override a scenario value in every run: key.path=value");
+  cmd->add_option("--every", o->every_s, "Sim seconds between two frames of a run (default 0.5)");
+  cmd->add_option("--min-visible", o->min_visible,
+                  "Smallest seen fraction of a cone's silhouette that gets a box (default 0.3)");
+  cmd->add_option("--min-pixels", o->min_pixels,
+                  "Fewest seen pixels of a cone that get a box (default 16)");
+  cmd->add_flag("--no-lidar", *no_lidar, "No LiDAR sweeps");
+  cmd->add_flag("--fixed-world", *fixed_world,
+                "Keep the scenario's clutter and ground (default: drawn per run from the seed)");
+  cmd->add_option("--out", o->out_dir, "Folder to write (default runs/dataset-<UTC stamp>)");
+  cmd->callback([=, &status] {
+    namespace sim = conesim::sim;
+    o->lidar = !*no_lidar;
+    o->randomise = !*fixed_world;
+    if (o->out_dir.empty()) o->out_dir = sim::make_run_dir("runs", "dataset");
+    sim::install_interrupt_handlers();
+    try {
+      const sim::DatasetSummary s = sim::write_dataset(*o, std::cerr);
+      if (s.runs == 0 && s.frames < o->frames) {
+        status = 1;
+        return;
+      }
+      if (sim::interrupt_signal() != 0) {
+        std::cerr << "interrupted: " << o->out_dir.string() << " is not complete\n";
+        status = 1;
+        return;
+      }
+      std::printf("%d frames from %d runs in %.1f s: %d boxes, %d LiDAR sweeps; %d boxes of "
+                  "unhidden cones checked against the segmentation, smallest IoU %.3f, %d below "
+                  "0.9\n%s\n",
+                  s.frames, s.runs, s.wall_s, s.boxes, s.lidar_sweeps, s.checked_boxes,
+                  s.min_box_iou, s.boxes_below_iou, o->out_dir.string().c_str());
+      status = s.boxes_below_iou == 0 ? 0 : 1;
+    } catch (const conesim::core::InputError&) {
+      throw;
+    } catch (const std::runtime_error& e) {
+      std::cerr << "conesim dataset: " << e.what() << "\n";
+      status = 1;
+    }
   });
 }
 
@@ -815,6 +875,7 @@ int main(int argc, char** argv) {
   add_merge_command(app, status, argc, argv);
   add_slurm_commands(app, status);
   add_compare_command(app, status, argc, argv);
+  add_dataset_command(app, status);
   add_vehicle_commands(app);
   add_bench_commands(app);
 

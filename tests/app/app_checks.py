@@ -21,24 +21,32 @@ def run(args, expect=None, env=None, timeout=600):
     return p
 
 
-def read_png(path):
-    """(width, height, rows of RGB tuples) of an 8-bit RGB or RGBA PNG, without PIL."""
+def png_header_and_data(path):
+    """(width, height, bit depth, colour type, interlace, decompressed scanlines) of a PNG."""
     with open(path, "rb") as f:
         data = f.read()
     if data[:8] != b"\x89PNG\r\n\x1a\n":
         raise ValueError(path + ": not a PNG")
-    at, idat, width, height, colour = 8, b"", 0, 0, 0
+    at, idat, header = 8, b"", None
     while at < len(data):
         size, kind = struct.unpack(">I4s", data[at:at + 8])
         body = data[at + 8:at + 8 + size]
         at += 12 + size
         if kind == b"IHDR":
-            width, height, depth, colour, _, _, interlace = struct.unpack(">IIBBBBB", body)
-            if depth != 8 or colour not in (2, 6) or interlace:
-                raise ValueError("%s: PNG type %d/%d not read here" % (path, depth, colour))
+            header = struct.unpack(">IIBBBBB", body)
         elif kind == b"IDAT":
             idat += body
-    raw = zlib.decompress(idat)
+    if header is None:
+        raise ValueError(path + ": no IHDR")
+    width, height, depth, colour, _, _, interlace = header
+    return width, height, depth, colour, interlace, zlib.decompress(idat)
+
+
+def read_png(path):
+    """(width, height, rows of RGB tuples) of an 8-bit RGB or RGBA PNG, without PIL."""
+    width, height, depth, colour, interlace, raw = png_header_and_data(path)
+    if depth != 8 or colour not in (2, 6) or interlace:
+        raise ValueError("%s: PNG type %d/%d not read here" % (path, depth, colour))
     bpp = 3 if colour == 2 else 4
     stride = width * bpp
     rows, prev, pos = [], bytearray(stride), 0
