@@ -761,12 +761,9 @@ void add_dataset_command(CLI::App& app, int& status) {
     sim::install_interrupt_handlers();
     try {
       const sim::DatasetSummary s = sim::write_dataset(*o, std::cerr);
-      if (s.runs == 0 && s.frames < o->frames) {
-        status = 1;
-        return;
-      }
       if (sim::interrupt_signal() != 0) {
-        std::cerr << "interrupted: " << o->out_dir.string() << " is not complete\n";
+        std::cerr << "interrupted: " << o->out_dir.string()
+                  << " is not complete (no manifest.json; its INCOMPLETE file says so)\n";
         status = 1;
         return;
       }
