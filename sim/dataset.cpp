@@ -16,6 +16,7 @@
 #include "core/cone_geometry.hpp"
 #include "core/error.hpp"
 #include "core/rng.hpp"
+#include "sensors/lidar_config.hpp"
 #include "sensors/png_writer.hpp"
 #include "sim/interrupt.hpp"
 #include "sim/json_text.hpp"
@@ -126,7 +127,7 @@ class FrameWriter : public LabelledDataSink {
         next_index_(first_index),
         quota_(quota),
         half_sweep_us_(core::from_seconds(0.5 * lidar_period_s)),
-        // the first frame a step after the go signal: the car stands still before it
+        // the first frame one period after the go signal: the car stands still before it
         next_capture_us_(core::from_seconds(scenario.start_delay_s + options.every_s)),
         thumbnails_(thumbnails) {}
 
@@ -555,7 +556,9 @@ DatasetSummary write_dataset(const DatasetOptions& o, std::ostream& log) {
     RunOptions options;
     options.out_dir = o.out_dir / "runs" / name;
     options.plot = false;
-    const double lidar_period_s = 0.1;
+    // the sweep period of the scenario's LiDAR (its model is checked with the scenario)
+    const auto preset = sensors::lidar_preset(s.sensors.lidar_model);
+    const double lidar_period_s = preset ? 1.0 / preset->rate_hz : 0.1;
     FrameWriter writer(o, o.out_dir, s, track, run, static_cast<int>(frames.size()),
                        std::min(quota, o.frames - static_cast<int>(frames.size())), lidar_period_s,
                        &thumbnails);
