@@ -212,15 +212,8 @@ void StereoCamera::render_segmentation(SegmentationImage& out) {
   scene_.flags[mjRND_SEGMENT] = 1;
   scene_.flags[mjRND_IDCOLOR] = 1;
 
-  // the left eye, as render() drew it (render_eye poses both GL cameras and the headlight)
-  const Eigen::Vector3d forward = last_left_in_track_.orientation * Eigen::Vector3d::UnitZ();
-  const Eigen::Vector3d up = last_left_in_track_.orientation * -Eigen::Vector3d::UnitY();
-  for (mjvGLCamera& cam : scene_.camera)
-    for (int i = 0; i < 3; ++i) {
-      cam.pos[i] = static_cast<float>(last_left_in_track_.position[i]);
-      cam.forward[i] = static_cast<float>(forward[i]);
-      cam.up[i] = static_cast<float>(up[i]);
-    }
+  // the left eye, as render() drew it
+  aim(last_left_in_track_);
   const mjrRect viewport{0, 0, w, h};
   mjr_render(viewport, &scene_, &context_);
   glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba_scratch_.data());
@@ -273,9 +266,7 @@ void StereoCamera::simplify_ground(const Eigen::Vector3d& centre) {
   }
 }
 
-void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& image,
-                              std::vector<float>* depth_m) {
-  const int w = config_.width_px, h = config_.height_px;
+void StereoCamera::aim(const core::Pose3& eye_in_track) {
   const Eigen::Vector3d forward = eye_in_track.orientation * Eigen::Vector3d::UnitZ();
   const Eigen::Vector3d up = eye_in_track.orientation * -Eigen::Vector3d::UnitY();
 
@@ -302,6 +293,12 @@ void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& i
       light.dir[i] = static_cast<float>(forward[i]);
     }
   }
+}
+
+void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& image,
+                              std::vector<float>* depth_m) {
+  const int w = config_.width_px, h = config_.height_px;
+  aim(eye_in_track);
 
   // draw and read back RGBA from the offscreen buffer (rows bottom-up; alpha 0 where nothing
   // was drawn, since mjr_render clears to transparent black)

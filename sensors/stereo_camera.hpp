@@ -112,6 +112,8 @@ class StereoCamera {
  private:
   // replaces MuJoCo's infinite ground plane by a plain square of asphalt around the rig
   void simplify_ground(const Eigen::Vector3d& centre);
+  // poses both GL cameras (and the headlight) at an eye, with the configured frustum
+  void aim(const core::Pose3& eye_in_track);
   // renders the scene from one eye into an RGB image, and the depth buffer if depth_m is given
   void render_eye(const core::Pose3& eye_in_track, core::RgbImage& image,
                   std::vector<float>* depth_m);
