@@ -30,6 +30,50 @@ constexpr int kChunkColumns = 32;
 // than the rounding of the single-precision tests, far less than the gap between cones
 constexpr float kFootprintSlackM = 0.01f;
 
+// one part of a beam's spot: where it ended, what it met and the energy it brings back (the
+// intensity before noise; 0 when it met nothing)
+struct Echo {
+  float range = 0.f;
+  int label = 0;
+  float energy = 0.f;
+};
+
+// the return of a beam whose spot is cast as three equal parts: parts whose ranges lie closer
+// than merge_m form one echo at their energy-weighted range, labelled by its strongest part; the
+// strongest echo is the return, with a third of each part's energy. False when nothing came back.
+bool strongest_echo(std::array<Echo, 3> parts, float merge_m, Echo& out) {
+  std::sort(parts.begin(), parts.end(),
+            [](const Echo& a, const Echo& b) { return a.range < b.range; });
+  bool found = false;
+  out.energy = 0.f;
+  for (size_t i = 0; i < parts.size();) {
+    if (!(parts[i].energy > 0.f)) {
+      ++i;
+      continue;
+    }
+    // the echo that starts at part i
+    float energy = 0.f, weighted = 0.f, strongest = 0.f, last = parts[i].range;
+    int label = parts[i].label;
+    size_t j = i;
+    for (; j < parts.size() && (!(parts[j].energy > 0.f) || parts[j].range - last < merge_m); ++j) {
+      if (!(parts[j].energy > 0.f)) continue;
+      energy += parts[j].energy;
+      weighted += parts[j].energy * parts[j].range;
+      last = parts[j].range;
+      if (parts[j].energy > strongest) {
+        strongest = parts[j].energy;
+        label = parts[j].label;
+      }
+    }
+    if (energy / 3.f > out.energy) {
+      out = {weighted / energy, label, energy / 3.f};
+      found = true;
+    }
+    i = j;
+  }
+  return found;
+}
+
 int class_index(core::ConeClass c) {
   return static_cast<int>(c);
 }
@@ -393,6 +437,14 @@ struct Lidar::Impl {
   // where rays are cut
   RayBounds ray_bounds;
   float inverse_squared_falloff = 0.f;
+  // a cone's footprint is widened before a ray is judged to pass clear of it: by the slack, and
+  // by half the beam's spot where the ray passes it, this much per metre of horizontal distance
+  float spot_slack_per_m = 0.f;
+  // the offset of the beam's outer thirds from its axis (tangent of the angle; 0: a thin ray)
+  float spot_offset = 0.f;
+  // the squared range of a 10 % diffuse target at normal incidence, over 0.1, for the signal
+  // of a return (0: every return is detected)
+  float detection_scale = 0.f;
   // the mount as a rotation and a translation
   Eigen::Matrix3d mount_rotation = Eigen::Matrix3d::Identity();
   Eigen::Vector3d mount_translation = Eigen::Vector3d::Zero();
@@ -430,15 +482,15 @@ struct Lidar::Impl {
   void build_scene(const tracks::Track& track, const std::vector<tracks::SceneryObject>& scenery,
                    const tracks::GroundModel& ground);
   void build_ground(const tracks::GroundModel& ground);
-  static RTCRayHit ray_hit(const Eigen::Vector3f& origin, const ChunkRays& rays, int slot,
-                           float tnear, float tfar);
+  static RTCRayHit ray_hit(const Eigen::Vector3f& origin, const Eigen::Vector3f& dir, float tnear,
+                           float tfar);
   void trace_ground(ChunkRays& rays, int first, const Eigen::Vector3f& origin) const;
   void throw_on_device_error(const char* what) const;
   float intensity_of(float reflectivity_of_surface, float cos_incidence, float range) const;
   float cast_column(ChunkRays& rays, int first, const Eigen::Vector3f& origin,
                     const Eigen::Vector3f& heading, const Eigen::Vector3f& up) const;
-  void hit_cone(const SceneCone& cone, const Eigen::Vector3f& origin, RTCIntersectContext& context,
-                ChunkRays& rays, int slot, float& reach) const;
+  void hit_cone(const SceneCone& cone, const Eigen::Vector3f& origin, const Eigen::Vector3f& dir,
+                RTCIntersectContext& context, float& reach, int& label, float& intensity) const;
 };
 
 float Lidar::Impl::intensity_of(float reflectivity_of_surface, float cos_incidence,
@@ -464,16 +516,16 @@ float Lidar::Impl::cast_column(ChunkRays& rays, int first, const Eigen::Vector3f
   return reach;
 }
 
-// the Embree ray of a slot from origin over [tnear, tfar], no hit yet
-RTCRayHit Lidar::Impl::ray_hit(const Eigen::Vector3f& origin, const ChunkRays& rays, int slot,
+// the Embree ray from origin along dir over [tnear, tfar], no hit yet
+RTCRayHit Lidar::Impl::ray_hit(const Eigen::Vector3f& origin, const Eigen::Vector3f& dir,
                                float tnear, float tfar) {
   RTCRayHit ray;
   ray.ray.org_x = origin.x();
   ray.ray.org_y = origin.y();
   ray.ray.org_z = origin.z();
-  ray.ray.dir_x = rays.dir_x[slot];
-  ray.ray.dir_y = rays.dir_y[slot];
-  ray.ray.dir_z = rays.dir_z[slot];
+  ray.ray.dir_x = dir.x();
+  ray.ray.dir_y = dir.y();
+  ray.ray.dir_z = dir.z();
   ray.ray.tnear = tnear;
   ray.ray.tfar = tfar;
   ray.ray.time = 0.f;
@@ -485,23 +537,22 @@ RTCRayHit Lidar::Impl::ray_hit(const Eigen::Vector3f& origin, const ChunkRays& r
   return ray;
 }
 
-// the cone's mesh, if the ray meets it nearer than reach (then reach becomes its range): the ray
-// moved into the cone's frame, which is the track frame shifted to the cone's place
+// the cone's mesh, if the ray from origin along dir (a unit vector) meets it nearer than reach
+// (then reach becomes its range, with the cone's label and the hit's intensity before noise):
+// the ray moved into the cone's frame, which is the track frame shifted to the cone's place
 void Lidar::Impl::hit_cone(const SceneCone& cone, const Eigen::Vector3f& origin,
-                           RTCIntersectContext& context, ChunkRays& rays, int slot,
-                           float& reach) const {
-  RTCRayHit ray = ray_hit(origin - Eigen::Vector3f(cone.x, cone.y, cone.z), rays, slot, 0.f, reach);
+                           const Eigen::Vector3f& dir, RTCIntersectContext& context, float& reach,
+                           int& label, float& intensity) const {
+  RTCRayHit ray = ray_hit(origin - Eigen::Vector3f(cone.x, cone.y, cone.z), dir, 0.f, reach);
   rtcIntersect1(class_scenes[cone.cls], &context, &ray);
   if (ray.hit.geomID == RTC_INVALID_GEOMETRY_ID) return;
 
-  // the hit's range and its intensity before noise (the shift leaves the normal as it is)
+  // (the shift leaves the normal as it is)
   const Eigen::Vector3f normal(ray.hit.Ng_x, ray.hit.Ng_y, ray.hit.Ng_z);
-  const Eigen::Vector3f dir(ray.ray.dir_x, ray.ray.dir_y, ray.ray.dir_z);
   const float cos_incidence = std::abs(dir.dot(normal)) / normal.norm();
   reach = ray.ray.tfar;
-  rays.label[slot] = cone.label;
-  rays.range[slot] = ray.ray.tfar;
-  rays.intensity[slot] =
+  label = cone.label;
+  intensity =
       intensity_of(class_reflectivity[cone.cls][ray.hit.primID], cos_incidence, ray.ray.tfar);
 }
 
@@ -581,6 +632,17 @@ void Lidar::Impl::build_beams() {
   mount_translation = config.mount.position;
   inverse_squared_falloff =
       static_cast<float>(1.0 / (config.intensity_falloff_m * config.intensity_falloff_m));
+
+  // the beam's spot and the fading of weak returns
+  const double divergence_rad = config.beam_divergence_mrad * 1e-3;
+  spot_offset = static_cast<float>(std::tan(divergence_rad / 3.0));
+  // (a ray's range over its horizontal distance is at most 1 / cos of the steepest beam)
+  double steepest_deg = 0.0;
+  for (double e : config.elevations_deg) steepest_deg = std::max(steepest_deg, std::abs(e));
+  spot_slack_per_m = static_cast<float>(std::tan(divergence_rad / 2.0) /
+                                        std::cos(steepest_deg * std::numbers::pi / 180.0));
+  detection_scale =
+      static_cast<float>(config.detection_range_10pct_m * config.detection_range_10pct_m / 0.1);
 
   // reflectivity per material
   for (int m = 0; m < kSurfaceMaterialCount; ++m)
@@ -799,6 +861,10 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
   const float intensity_sigma = static_cast<float>(cfg.intensity_noise_sigma);
   const float min_range = static_cast<float>(cfg.min_range_m);
   const bool dropout = cfg.dropout_probability > 0.0;
+  const float range_growth = static_cast<float>(cfg.range_noise_growth);
+  const float echo_merge = static_cast<float>(cfg.echo_merge_m);
+  const float detection_scale = im.detection_scale;
+  const float falloff = im.inverse_squared_falloff;
 
   for (int c0 = column_begin; c0 < column_end; c0 += kChunkColumns) {
     const int chunk = std::min(kChunkColumns, column_end - c0);
@@ -879,8 +945,20 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
 
     // the cones the chunk's rays may pass near
     chunk_cones.clear();
+    // (the footprint widened by the slack and half the spot: from the chunk's mean origin, the
+    // columns' origins lie within its spread)
+    const auto widened = [&](const Impl::SceneCone& cone, float from_x, float from_y,
+                             float spread) {
+      float r = cone.footprint_m + kFootprintSlackM;
+      if (im.spot_slack_per_m > 0.f)
+        r += im.spot_slack_per_m *
+             (std::hypot(cone.x - from_x, cone.y - from_y) + spread + cone.footprint_m);
+      return r;
+    };
     for (const Impl::SceneCone* cone : standing)
-      if (chunk_fan.may_meet(cone->x, cone->y, cone->footprint_m + kFootprintSlackM))
+      if (chunk_fan.may_meet(
+              cone->x, cone->y,
+              widened(*cone, chunk_fan.origin_x, chunk_fan.origin_y, chunk_fan.spread)))
         chunk_cones.push_back(cone);
 
     // each ray: the ground plane, and the meshes of the cones its column's fan may meet that
@@ -890,11 +968,12 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
       const int first = j * channel_count, last = first + channel_count;
       const bool anywhere = !(origin.z() > im.ray_bounds.floor_z);
       column_cones.clear();
-      for (const Impl::SceneCone* cone : chunk_cones)
-        if (column_fans[j].may_meet(cone->x, cone->y, cone->footprint_m + kFootprintSlackM))
-          column_cones.push_back({cone->x - origin.x(), cone->y - origin.y(),
-                                  cone->footprint_m + kFootprintSlackM, cone->top_m,
+      for (const Impl::SceneCone* cone : chunk_cones) {
+        const float radius = widened(*cone, origin.x(), origin.y(), 0.f);
+        if (column_fans[j].may_meet(cone->x, cone->y, radius))
+          column_cones.push_back({cone->x - origin.x(), cone->y - origin.y(), radius, cone->top_m,
                                   static_cast<int>(cone - im.cones.data())});
+      }
 
       // a column clear of every cone (most of them) meets only the ground, as cast already
       if (column_cones.empty() && !anywhere) continue;
@@ -923,7 +1002,11 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
         const float dx = rays.dir_x[slot], dy = rays.dir_y[slot], dz = rays.dir_z[slot];
         const float squared = dx * dx + dy * dy;
         const bool near_all = anywhere || !(squared > 1e-6f);
-        float reach = rays.label[slot] == kNoReturn ? length : rays.range[slot];
+        // what the ray met before the cones (the ground, or nothing)
+        const int behind_label = rays.label[slot];
+        const float behind_range = behind_label == kNoReturn ? length : rays.range[slot];
+        const float behind_energy = behind_label == kNoReturn ? 0.f : rays.intensity[slot];
+        float reach = behind_range;
         bool traced = false;
         for (size_t k = 0; k < cone_count; ++k) {
           const NearCone& cone = column_cones[k];
@@ -939,10 +1022,41 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
             const float leave = std::min(length, closest + half);
             if (origin.z() + dz * (dz > 0.f ? enter : leave) > cone.top_m) continue;
           }
-          im.hit_cone(im.cones[cone.index], origin, context, rays, slot, reach);
+          im.hit_cone(im.cones[cone.index], origin, Eigen::Vector3f(dx, dy, dz), context, reach,
+                      rays.label[slot], rays.intensity[slot]);
           traced = true;
         }
+        if (traced) rays.range[slot] = reach;
         scan.stats.traced += traced;
+
+        // a spot with a width near a cone: its outer thirds, beside the ray across the scan,
+        // meet the cones (or what the ray met behind them), and the strongest echo is the return
+        if (traced && im.spot_offset > 0.f && squared > 1e-6f) {
+          std::array<Echo, 3> parts;
+          parts[0] = {rays.range[slot], rays.label[slot],
+                      rays.label[slot] == kNoReturn ? 0.f : rays.intensity[slot]};
+          const float across = im.spot_offset / std::sqrt(squared);
+          for (int side = 0; side < 2; ++side) {
+            const float shift = side == 0 ? -across : across;
+            const Eigen::Vector3f dir =
+                Eigen::Vector3f(dx - shift * dy, dy + shift * dx, dz).normalized();
+            Echo& part = parts[1 + side];
+            part = {behind_range, behind_label, behind_energy};
+            float part_reach = behind_range;
+            for (const NearCone& cone : column_cones)
+              im.hit_cone(im.cones[cone.index], origin, dir, context, part_reach, part.label,
+                          part.energy);
+            part.range = part_reach;
+          }
+          Echo echo;
+          if (strongest_echo(parts, echo_merge, echo)) {
+            rays.range[slot] = echo.range;
+            rays.label[slot] = echo.label;
+            rays.intensity[slot] = echo.energy;
+          } else {
+            rays.label[slot] = kNoReturn;
+          }
+        }
       }
     }
 
@@ -954,7 +1068,7 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
     scan.stats.hits += returns;
 
     // each return becomes a point, in firing order, unless a fault or the range window takes it
-    int64_t dropped = 0, out_of_range = 0;
+    int64_t dropped = 0, faded = 0, out_of_range = 0;
     NormalDraws draw(noise.normal);
     core::LidarPoint* point = rays.points.data();
     int* point_label = rays.point_label.data();
@@ -973,9 +1087,25 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
           continue;
         }
 
-        // range noise; a noisy range outside the sensor's window is no return
+        // a weak return fades: the probability of detecting it rises with its signal (the
+        // surface's reflectivity times the cosine of incidence over the squared range) as
+        // q^4 / (1 + q^4), q its signal over that of a 10 % target at detection_range_10pct_m
         const float range = rays.range[first + ch];
-        const float measured = range_sigma > 0.f ? range + range_sigma * draw() : range;
+        if (detection_scale > 0.f) {
+          const float reflected =
+              rays.intensity[first + ch] / 255.f * (1.f + range * range * falloff);
+          const float q = reflected * detection_scale / std::max(range * range, 1e-6f);
+          const float q4 = (q * q) * (q * q);
+          // (beyond q = 32 the return is lost with a probability under 1e-6: no draw)
+          if (q < 32.f && core::uniform(rng, 0.0, 1.0) * (1.0 + q4) > q4) {
+            ++faded;
+            continue;
+          }
+        }
+
+        // range noise, growing with range; a noisy range outside the sensor's window is no return
+        const float sigma = range_sigma + range_growth * range;
+        const float measured = sigma > 0.f ? range + sigma * draw() : range;
         if (measured < min_range || measured > max_range) {
           ++out_of_range;
           continue;
@@ -993,6 +1123,7 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
     }
     draw.finish();
     scan.stats.dropped += dropped;
+    scan.stats.faded += faded;
     scan.stats.out_of_range += out_of_range;
 
     // the chunk's points join the scan

@@ -35,6 +35,8 @@ struct LidarSweepStats {
   int64_t hits = 0;
   /// Hits lost to the configured dropout.
   int64_t dropped = 0;
+  /// Hits too weak to be detected (dark or grazing surfaces far away; detection_range_10pct_m).
+  int64_t faded = 0;
   /// Hits whose noisy range fell outside [min_range_m, max_range_m].
   int64_t out_of_range = 0;
   /// Rays cast through Embree (the meshes of the standing cones they pass near); the others

@@ -64,6 +64,15 @@ std::string LidarConfig::validate() const {
   // noise and faults
   if (!(range_noise_sigma_m >= 0.0 && range_noise_sigma_m < 1.0))
     return bad("range_noise_sigma_m", "a sigma in [0, 1) m");
+  if (!(range_noise_growth >= 0.0 && range_noise_growth < 0.01))
+    return bad("range_noise_growth", "a growth in [0, 0.01) m per m of range");
+  if (!(detection_range_10pct_m == 0.0 ||
+        (detection_range_10pct_m >= 1.0 && detection_range_10pct_m <= 1000.0)))
+    return bad("detection_range_10pct_m", "0 (off) or a range in [1, 1000] m");
+  if (!(beam_divergence_mrad >= 0.0 && beam_divergence_mrad <= 50.0))
+    return bad("beam_divergence_mrad", "a full angle in [0, 50] mrad");
+  if (!(echo_merge_m >= 0.0 && echo_merge_m <= 10.0))
+    return bad("echo_merge_m", "a distance in [0, 10] m");
   if (!(dropout_probability >= 0.0 && dropout_probability <= 1.0))
     return bad("dropout_probability", "a probability in [0, 1]");
   if (!(intensity_noise_sigma >= 0.0 && intensity_noise_sigma <= 255.0))
@@ -80,6 +89,12 @@ std::string LidarConfig::validate() const {
   return {};
 }
 
+void LidarConfig::clear_realism() {
+  range_noise_growth = 0.0;
+  detection_range_10pct_m = 0.0;
+  beam_divergence_mrad = 0.0;
+}
+
 std::optional<LidarConfig> lidar_preset(std::string_view model) {
   // the VLP-16 is the default configuration
   if (model == "vlp16") return LidarConfig{};
@@ -93,6 +108,7 @@ std::optional<LidarConfig> lidar_preset(std::string_view model) {
                         -4.667, 1.667, 1.0,    -3.667,  -3.333, 3.333, 2.333,  -2.667,
                         -3.0,   7.0,   4.667,  -2.333,  -2.0,   15.0,  10.333, -1.333};
     c.max_range_m = 200.0;
+    c.detection_range_10pct_m = 200.0 / std::sqrt(8.0);  // 200 m on 80 %, as for the VLP-16
     return c;
   }
 
@@ -107,6 +123,8 @@ std::optional<LidarConfig> lidar_preset(std::string_view model) {
     c.max_range_m = 120.0;
     c.min_range_m = 0.8;
     c.range_noise_sigma_m = 0.03;
+    c.detection_range_10pct_m = 40.0;  // the datasheet's range on a 10 % target
+    c.beam_divergence_mrad = 3.1;      // 0.18 degrees
     return c;
   }
   return std::nullopt;

@@ -55,6 +55,23 @@ struct LidarConfig {
   /// Gaussian range noise, metres. 0.015 m reads the VLP-16 datasheet's "+-3 cm typical" as a
   /// two-sigma bound (95 % of returns within 3 cm).
   double range_noise_sigma_m = 0.015;
+  /// Growth of the range noise's sigma with range: sigma(r) = range_noise_sigma_m +
+  /// range_noise_growth * r. 1e-4 (1 cm more at 100 m) is a choice: the datasheets give one
+  /// figure for the whole range.
+  double range_noise_growth = 1e-4;
+  /// Range at which a diffuse target of 10 % reflectivity at normal incidence returns with
+  /// probability one half; the return's signal (reflectivity times the cosine of incidence over
+  /// the squared range) sets the probability of every return, so dark surfaces and grazing
+  /// ground fade first. 0: every return is kept. 35 m reads the VLP-16's 100 m as the range on an
+  /// 80 % target (the range goes with the square root of the reflectivity: 100 / sqrt(8)).
+  double detection_range_10pct_m = 35.0;
+  /// Full horizontal beam divergence, mrad (Velodyne: 3.0). A beam whose spot falls partly on a
+  /// cone gives a mixed return at its edge: the spot is cast as three rays across its width,
+  /// echoes nearer each other than echo_merge_m merge at their energy-weighted range and the
+  /// strongest echo is the return. 0: a thin ray.
+  double beam_divergence_mrad = 3.0;
+  /// Echoes closer than this merge into one return (about half the pulse's length).
+  double echo_merge_m = 0.5;
   /// Probability that a return is lost (fault injection).
   double dropout_probability = 0.0;
   /// Gaussian noise on the 0-255 intensity.
@@ -66,6 +83,10 @@ struct LidarConfig {
   Reflectivity reflectivity;
   /// Facets of the cone meshes (24: the mesh lies within 1 mm of the true cone).
   int cone_mesh_sides = 24;
+
+  /// Today's idealised sensor, as with `sensors.realism: off`: range noise constant over range,
+  /// no fading of weak returns, thin rays.
+  void clear_realism();
 
   /// Duration of one sweep, microseconds.
   core::TimeUs sweep_period_us() const;

@@ -62,9 +62,12 @@ nlohmann::json bench_sensors(int repeats, bool closed_loop) {
   const tracks::Track track = make_event_track(core::EventType::kTrackdrive, 1);
   nlohmann::json out;
 
-  // LiDAR: sweeps of a car moving at 10 m/s along the start straight
-  {
-    sensors::Lidar lidar(sensors::LidarConfig{}, track);
+  // LiDAR: sweeps of a car moving at 10 m/s along the start straight, with the VLP-16's realism
+  // (the default) and as the ideal sensor (`sensors.realism: off`)
+  for (const bool realism : {true, false}) {
+    sensors::LidarConfig config;
+    if (!realism) config.clear_realism();
+    sensors::Lidar lidar(config, track);
     sensors::PoseHistory poses(2 * core::kUsPerSecond);
     for (core::TimeUs t = 0; t <= 200'000; t += 1000) {
       core::Pose3 p;
@@ -81,9 +84,10 @@ nlohmann::json bench_sensors(int repeats, bool closed_loop) {
       ms.push_back(elapsed);
       mrays.push_back(static_cast<double>(scan.stats.rays) / (elapsed * 1e3));
     }
-    out["lidar_scan_ms"] = spread(ms)["median"];
-    out["lidar_mrays_per_s"] = spread(mrays)["median"];
-    out["lidar_scan_ms_spread"] = spread(ms);
+    const std::string suffix = realism ? "" : "_ideal";
+    out["lidar_scan_ms" + suffix] = spread(ms)["median"];
+    out["lidar_mrays_per_s" + suffix] = spread(mrays)["median"];
+    out["lidar_scan_ms_spread" + suffix] = spread(ms);
   }
 
   // stereo: two 640x480 frames of the car at the start

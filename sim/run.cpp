@@ -987,6 +987,8 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
       {"sensors",
        {{"lidar_scans", rig.stats().lidar_scans},
         {"lidar_points", rig.stats().lidar_points},
+        {"lidar_returns_faded", rig.stats().lidar_returns_faded},
+        {"realism", s.sensors.realism ? "on" : "off"},
         {"camera_frames", rig.stats().camera_frames},
         {"cone_sensor_frames", rig.stats().cone_frames},
         {"lidar_detect_ms_mean",

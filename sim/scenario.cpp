@@ -1066,6 +1066,17 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
          read_section(
              n, w,
              {number("driver_rate_hz", ss.driver_rate_hz, w),
+              {"realism",
+               [&](const YAML::Node& v) {
+                 // on/off (YAML 1.1 reads them as booleans), or true/false
+                 const std::string text = v.IsScalar() ? v.Scalar() : std::string();
+                 if (text == "on" || text == "true")
+                   ss.realism = true;
+                 else if (text == "off" || text == "false")
+                   ss.realism = false;
+                 else
+                   w.fail(v, "realism", "expected on or off, got " + describe(v));
+               }},
               number("cone_range_m", ss.cone_range_m, w),
               number("cone_fov_deg", ss.cone_fov_deg, w),
               {"cone_sensor",
@@ -1126,6 +1137,14 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                                            "vlp32c or os1-64");
                                 }},
                                number("latency_s", ss.lidar_latency_s, c),
+                               optional_number("range_noise_sigma_m",
+                                               ss.lidar_range_noise_sigma_m, c),
+                               optional_number("range_noise_growth", ss.lidar_range_noise_growth,
+                                               c),
+                               optional_number("detection_range_10pct_m",
+                                               ss.lidar_detection_range_10pct_m, c),
+                               optional_number("beam_divergence_mrad",
+                                               ss.lidar_beam_divergence_mrad, c),
                                {"mount", [&](const YAML::Node& x) {
                                   ss.lidar_mount = read_string(x, c, "mount");
                                   if (!sensors::lidar_mount_preset(ss.lidar_mount))
@@ -1206,6 +1225,8 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
     context.fail_check("sensors", e);
   if (const std::string e = s.sensors.camera.validate(); !e.empty())
     context.fail_check("sensors.camera", e);
+  if (const std::string e = s.sensors.lidar_config().validate(); !e.empty())
+    context.fail_check("sensors.lidar", e);
   {
     if (!core::whole_physics_steps(s.sensors.camera_rate_hz))
       context.fail("sensors.camera.rate_hz",
@@ -1399,6 +1420,20 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   }
   s.warnings = std::move(context.warnings);
   return s;
+}
+
+sensors::LidarConfig SensorSettings::lidar_config() const {
+  std::optional<sensors::LidarConfig> c = sensors::lidar_preset(lidar_model);
+  const std::optional<core::Pose3> mount = sensors::lidar_mount_preset(lidar_mount);
+  if (!c) throw std::invalid_argument("sensors.lidar.model: unknown model " + lidar_model);
+  if (!mount) throw std::invalid_argument("sensors.lidar.mount: unknown mount " + lidar_mount);
+  c->mount = *mount;
+  if (!realism) c->clear_realism();
+  if (lidar_range_noise_sigma_m) c->range_noise_sigma_m = *lidar_range_noise_sigma_m;
+  if (lidar_range_noise_growth) c->range_noise_growth = *lidar_range_noise_growth;
+  if (lidar_detection_range_10pct_m) c->detection_range_10pct_m = *lidar_detection_range_10pct_m;
+  if (lidar_beam_divergence_mrad) c->beam_divergence_mrad = *lidar_beam_divergence_mrad;
+  return *c;
 }
 
 }  // namespace conesim::sim

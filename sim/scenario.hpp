@@ -12,6 +12,7 @@
 #include "control/driver.hpp"
 #include "core/event.hpp"
 #include "sensors/cone_sensor.hpp"
+#include "sensors/lidar_config.hpp"
 #include "sensors/stereo_camera.hpp"
 #include "sensors/vehicle_sensors.hpp"
 #include "sim/autonomy.hpp"
@@ -53,6 +54,15 @@ struct SensorSettings {
   /// A preset of sensors::lidar_preset (vlp16, vlp32c, os1-64) and a mount preset.
   std::string lidar_model = "vlp16";
   std::string lidar_mount = "front_wing";
+  /// `sensors.realism`: on, each sensor model's realism (the LiDAR's range noise growing with
+  /// range, weak returns fading, a spot with a width); off, the ideal sensors of before.
+  bool realism = true;
+  /// `sensors.lidar.<key>`: the model's noise and realism overridden (unset: the model's).
+  std::optional<double> lidar_range_noise_sigma_m, lidar_range_noise_growth,
+      lidar_detection_range_10pct_m, lidar_beam_divergence_mrad;
+  /// The LiDAR these settings describe: the model's preset on its mount, its realism cleared
+  /// when realism is off, then the overrides (std::invalid_argument for an unknown model).
+  sensors::LidarConfig lidar_config() const;
   /// Time from a sweep's end until its cones reach SLAM (`perception: lidar|fused`), seconds;
   /// less than one sweep.
   double lidar_latency_s = 0.05;

@@ -379,16 +379,10 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
 
   // the LiDAR sweeps from the first step on
   if (s.sensors.lidar_enabled || raw_lidar || tap_lidar || dump_.sensors.count("lidar")) {
-    auto config = sensors::lidar_preset(s.sensors.lidar_model);
-    const auto mount = sensors::lidar_mount_preset(s.sensors.lidar_mount);
-    if (!config)
-      throw std::invalid_argument("sensors.lidar.model: unknown model " + s.sensors.lidar_model);
-    if (!mount)
-      throw std::invalid_argument("sensors.lidar.mount: unknown mount " + s.sensors.lidar_mount);
-    config->mount = *mount;
-    lidar_mount_ = *mount;
-    lidar_ = std::make_unique<sensors::Lidar>(*config, track, scenery_, car.ground());
-    poses_ = sensors::PoseHistory(2 * config->sweep_period_us());
+    const sensors::LidarConfig config = s.sensors.lidar_config();
+    lidar_mount_ = config.mount;
+    lidar_ = std::make_unique<sensors::Lidar>(config, track, scenery_, car.ground());
+    poses_ = sensors::PoseHistory(2 * config.sweep_period_us());
     poses_.push(0, car.vehicle_pose3());
     lidar_latency_us_ = core::from_seconds(s.sensors.lidar_latency_s);
     casting_ = std::make_shared<SweepInProgress>();
@@ -575,6 +569,7 @@ void SensorRig::collect_sweep() {
   stats_.lidar_ms_total += result.cast_ms;
   const int index = stats_.lidar_scans++;
   stats_.lidar_points += static_cast<int64_t>(scan.cloud.points.size());
+  stats_.lidar_returns_faded += scan.stats.faded;
   fault_counts_.add(result.fault_counts);
   if (result.lost) {
     ++stats_.lidar_sweeps_lost;

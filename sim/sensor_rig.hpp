@@ -47,6 +47,8 @@ struct SensorRigStats {
   /// Sweeps a fault lost before perception (counted in lidar_scans too).
   int lidar_sweeps_lost = 0;
   int64_t lidar_points = 0;
+  /// Returns too weak to be detected (the LiDAR's detection_range_10pct_m), all sweeps.
+  int64_t lidar_returns_faded = 0;
   int camera_frames = 0;
   int cone_frames = 0;
   double lidar_ms_total = 0.0;

@@ -19,6 +19,7 @@ inline slam::frontend::LidarDetectorConfig lidar_detector_config(
   std::sort(config.ring_elevations_deg.begin(), config.ring_elevations_deg.end());
   config.azimuth_step_deg = 360.0 / lidar.columns;
   config.range_noise_sigma_m = lidar.range_noise_sigma_m;
+  config.beam_divergence_mrad = lidar.beam_divergence_mrad;
   return config;
 }
 

@@ -556,6 +556,7 @@ ConeClass classify_paint(const LidarDetectorConfig& config, const std::vector<Ra
   if (hypotheses.size == 1) return hypotheses.h[0].cls;
   const Vector2d ray = (centre - sensor_xy).normalized();
   const Vector2d across(-ray.y(), ray.x());
+  const double half_spot = std::tan(0.5e-3 * config.beam_divergence_mrad);
 
   // mean log-likelihood per usable point of each hypothesis (shapes differ in the points they
   // can use), scaled below by the fewest usable points
@@ -582,7 +583,8 @@ ConeClass classify_paint(const LidarDetectorConfig& config, const std::vector<Ra
         if (p.height_m > h.shape.height_m + 0.02) continue;
         const double radius = body_radius(h.shape, p.height_m);
         const double u = (p.foot - centre).dot(across) / radius;
-        if (std::abs(u) > 0.85) continue;
+        // (the half spot at the point's range, as a share of the radius, off the usable width)
+        if (std::abs(u) > 0.85 - half_spot * p.range_m / radius) continue;
         const BandChance band = band_chance(h.shape, p.height_m, config.height_sigma_m);
         const double falloff = 1.0 / (1.0 + std::pow(p.range_m / config.intensity_falloff_m, 2));
         const double scale = 255.0 * std::sqrt(1.0 - u * u) * cos_taper * falloff;
@@ -703,6 +705,8 @@ std::string LidarDetectorConfig::validate() const {
   positive("intensity_falloff_m", intensity_falloff_m);
   positive("intensity_sigma", intensity_sigma);
   non_negative("intensity_model_error", intensity_model_error);
+  if (e.tellp() == 0 && !(beam_divergence_mrad >= 0.0 && beam_divergence_mrad <= 50.0))
+    e << "beam_divergence_mrad: expected 0-50, got " << beam_divergence_mrad;
   if (e.tellp() == 0 && !(intensity_gain_tolerance >= 0.0 && intensity_gain_tolerance < 1.0))
     e << "intensity_gain_tolerance: expected 0-1, got " << intensity_gain_tolerance;
   positive("height_sigma_m", height_sigma_m);

@@ -95,6 +95,9 @@ struct LidarDetectorConfig {
   /// One-sigma error of a point's height above the fitted ground, metres: near a band edge the
   /// point may be on either band, and both paints are weighed.
   double height_sigma_m = 0.005;
+  /// Full width of the beam across the scan, mrad (VLP-16: 3.0): a point whose spot may reach
+  /// past the cone's silhouette brought back only part of its energy, and is not used for colour.
+  double beam_divergence_mrad = 3.0;
   /// Fewest points usable for colour (away from the silhouette and the band edges).
   int colour_min_points = 3;
   /// Smallest log-likelihood lead of the best paint pattern over the next one; below it the

@@ -56,8 +56,9 @@ PoseHistory drive(const Pose3& start, double speed_mps, TimeUs from, TimeUs to) 
   return history;
 }
 
-// a configuration without noise
+// the ideal sensor: thin rays that never fade, no noise (every point lies on what it hit)
 LidarConfig noiseless(LidarConfig config = {}) {
+  config.clear_realism();
   config.range_noise_sigma_m = 0.0;
   config.intensity_noise_sigma = 0.0;
   config.dropout_probability = 0.0;
@@ -220,7 +221,9 @@ TEST(Lidar, LevelCarSeesTheGroundAtTheAnalyticRangeOnEveryRing) {
 TEST(Lidar, LabelledPointsLieOnWhatTheyHit) {
   const tracks::Track track = ring_of_cones();
   for (double sigma : {0.0, 0.015}) {
+    // thin rays and a constant noise: points off the surfaces only by the noise
     LidarConfig config;
+    config.clear_realism();
     config.range_noise_sigma_m = sigma;
     const Lidar lidar(config, track);
     const PoseHistory poses = drive(planar_pose(0.0, 0.0, 0.0), 0.0, 0, 200'000);
@@ -417,6 +420,148 @@ TEST(Lidar, AKnockedConeGetsNoPoints) {
   EXPECT_THROW(lidar.set_cone_present(99, false), std::out_of_range);
 }
 
+// ---------------------------------------------------------------------------------------------
+// the sensor's realism: noise that grows with range, weak returns that fade, a spot with a width
+
+// The range noise grows with range as configured: the spread of the ground's ranges on each ring
+// (one range per ring for a level car on flat ground) is sigma + growth * range.
+TEST(Lidar, RangeNoiseGrowsWithRange) {
+  LidarConfig config = noiseless();
+  config.range_noise_sigma_m = 0.01;
+  config.range_noise_growth = 0.003;  // 3 cm more at 10 m: far above the sampling error
+  const Lidar lidar(config, make_track({}));
+  const PoseHistory poses = drive(Pose3{}, 0.0, 0, 200'000);
+  core::Rng rng(11);
+  const LidarScan scan = lidar.sweep(0, poses, rng);
+  const double height = config.mount.position.z();
+  std::vector<double> sum(16, 0.0), squares(16, 0.0), count(16, 0.0);
+  for (const core::LidarPoint& p : scan.cloud.points) {
+    const double expected = height / std::sin(-config.elevations_deg[p.ring] * kDeg);
+    const double error = range_of(p) - expected;
+    sum[p.ring] += error;
+    squares[p.ring] += error * error;
+    count[p.ring] += 1.0;
+  }
+  int rings = 0;
+  for (int ring = 0; ring < 8; ++ring) {  // the downward rings, ground at 0.7-10 m
+    const double expected_range = height / std::sin(-config.elevations_deg[ring] * kDeg);
+    if (count[ring] < 500 || expected_range > config.max_range_m) continue;
+    const double mean = sum[ring] / count[ring];
+    const double spread = std::sqrt(squares[ring] / count[ring] - mean * mean);
+    const double sigma = 0.01 + 0.003 * expected_range;
+    // the sample's spread within 10 % of sigma: over 20 times its own standard error
+    EXPECT_NEAR(spread, sigma, 0.1 * sigma) << "ring " << ring << " at " << expected_range << " m";
+    ++rings;
+  }
+  EXPECT_GE(rings, 6);
+}
+
+// Weak returns fade as the configured law says, and a user sees it where it matters: a cone's
+// black stripe loses most of its points at 30 m where its white one keeps them, and the ground
+// fades with range at its grazing incidence. Each return of the ideal scan (no noise, so its
+// intensity is the one before noise) is kept with probability q^4 / (1 + q^4).
+TEST(Lidar, DarkAndGrazingReturnsFadeFirst) {
+  std::vector<std::pair<core::Vec2, ConeClass>> cones;
+  for (int i = 0; i < 60; ++i) {
+    const double a = 2.0 * std::numbers::pi * i / 60.0;
+    const double r = 30.0;
+    cones.push_back({core::Vec2(2.1 + r * std::cos(a), r * std::sin(a)),
+                     i % 4 < 2 ? ConeClass::kYellow : ConeClass::kBlue});
+  }
+  const tracks::Track track = make_track(cones);
+  // (the VLP-32C's rays, dense about the horizon, meet small cones at 30 m)
+  LidarConfig ideal = noiseless(*lidar_preset("vlp32c"));
+  LidarConfig fading = ideal;
+  fading.detection_range_10pct_m = 35.0;
+  const Lidar all(ideal, track), kept(fading, track);
+  const PoseHistory poses = drive(Pose3{}, 0.0, 0, 200'000);
+  core::Rng rng_all(5), rng_kept(5);
+  const LidarScan before = all.sweep(0, poses, rng_all);
+  const LidarScan after = kept.sweep(0, poses, rng_kept);
+  EXPECT_EQ(after.stats.hits - after.stats.faded, static_cast<int64_t>(after.cloud.points.size()));
+
+  // the probability of each return of the ideal scan, and what was seen of each kind
+  const double falloff = 1.0 / (ideal.intensity_falloff_m * ideal.intensity_falloff_m);
+  double expected = 0.0, variance = 0.0;
+  struct Kind {
+    double before = 0, after = 0;
+  } dark_far, bright_far, near_ground, far_ground;
+  auto kind_of = [&](const core::LidarPoint& p, int label) -> Kind* {
+    const double r = range_of(p);
+    const double reflected = p.intensity / 255.0 * (1.0 + r * r * falloff);
+    if (label == core::PointCloudLabels::kGroundLabel)
+      return r < 3.0 ? &near_ground : r > 6.0 ? &far_ground : nullptr;
+    if (r < 25.0) return nullptr;
+    if (reflected < 0.06) return &dark_far;
+    if (reflected > 0.5) return &bright_far;
+    return nullptr;
+  };
+  for (size_t i = 0; i < before.cloud.points.size(); ++i) {
+    const core::LidarPoint& p = before.cloud.points[i];
+    const double r = range_of(p);
+    const double q = p.intensity / 255.0 * (1.0 + r * r * falloff) * 35.0 * 35.0 / 0.1 / (r * r);
+    const double pk = std::pow(q, 4) / (1.0 + std::pow(q, 4));
+    expected += pk;
+    variance += pk * (1.0 - pk);
+    if (Kind* k = kind_of(p, before.labels.cone_id[i])) k->before += 1;
+  }
+  for (size_t i = 0; i < after.cloud.points.size(); ++i)
+    if (Kind* k = kind_of(after.cloud.points[i], after.labels.cone_id[i])) k->after += 1;
+  EXPECT_NEAR(static_cast<double>(after.cloud.points.size()), expected, 5.0 * std::sqrt(variance));
+
+  ASSERT_GT(dark_far.before, 20);
+  ASSERT_GT(bright_far.before, 20);
+  EXPECT_LT(dark_far.after / dark_far.before, 0.5) << dark_far.before;
+  EXPECT_GT(bright_far.after / bright_far.before, 0.95) << bright_far.before;
+  EXPECT_GT(near_ground.after / near_ground.before, 0.95);
+  EXPECT_LT(far_ground.after / far_ground.before, 0.5);
+}
+
+// A spot with a width gives mixed returns at the cones' edges: points off every surface (a part
+// of the spot on the cone makes the cone look wider, or merges with the ground just behind it),
+// which thin rays never give; they are few, and weaker than the cone's own points, since only a
+// part of the spot came back from the cone. (10 mrad, three times a VLP-16's, to put the edge
+// points well clear of the mesh's facets.)
+TEST(Lidar, ASpotWithAWidthGivesMixedReturnsAtConeEdges) {
+  const tracks::Track track = ring_of_cones();
+  const PoseHistory poses = drive(Pose3{}, 0.0, 0, 200'000);
+  const double facets = facet_deviation_m(cone_shape(ConeClass::kOrangeBig), 24);
+  for (double divergence : {0.0, 10.0}) {
+    LidarConfig config = noiseless();
+    config.beam_divergence_mrad = divergence;
+    const Lidar lidar(config, track);
+    core::Rng rng(9);
+    const LidarScan scan = lidar.sweep(0, poses, rng);
+    int mixed = 0, on_cones = 0;
+    double mixed_intensity = 0.0, cone_intensity = 0.0;
+    for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+      const core::LidarPoint& q = scan.cloud.points[i];
+      const Eigen::Vector3d p = in_track(lidar, poses, scan.cloud, q);
+      double nearest = std::abs(p.z());
+      for (const tracks::Cone& cone : track.cones)
+        nearest =
+            std::min(nearest, cone_shape(cone.cls).surface_distance(
+                                  p - Eigen::Vector3d(cone.position.x(), cone.position.y(), 0.0)));
+      // (beyond the curvature a spot averages over: a few millimetres)
+      if (nearest > facets + 0.01) {
+        ++mixed;
+        mixed_intensity += q.intensity;
+      } else if (scan.labels.cone_id[i] >= 0) {
+        ++on_cones;
+        cone_intensity += q.intensity;
+      }
+    }
+    ASSERT_GT(on_cones, 300);
+    if (divergence == 0.0) {
+      EXPECT_EQ(mixed, 0);
+    } else {
+      EXPECT_GT(mixed, 10) << on_cones;
+      EXPECT_LT(mixed, on_cones / 4) << mixed;
+      EXPECT_LT(mixed_intensity / mixed, cone_intensity / on_cones);
+    }
+  }
+}
+
 TEST(Lidar, DropoutLosesTheConfiguredShareOfReturns) {
   LidarConfig config;
   config.dropout_probability = 0.1;
@@ -427,7 +572,7 @@ TEST(Lidar, DropoutLosesTheConfiguredShareOfReturns) {
   const double n = static_cast<double>(scan.stats.hits);
   const double sigma = std::sqrt(n * 0.1 * 0.9);
   EXPECT_NEAR(static_cast<double>(scan.stats.dropped), 0.1 * n, 5.0 * sigma);
-  EXPECT_EQ(scan.stats.hits - scan.stats.dropped - scan.stats.out_of_range,
+  EXPECT_EQ(scan.stats.hits - scan.stats.dropped - scan.stats.faded - scan.stats.out_of_range,
             static_cast<int64_t>(scan.cloud.points.size()));
 }
 
@@ -723,8 +868,11 @@ TEST(Lidar, OnUnevenGroundThePointsLieOnTheHeightModel) {
   const tracks::GroundModel ground(track, shape, 3);
   ASSERT_FALSE(ground.flat());
   for (double sigma : {0.0, 0.015}) {
+    // thin rays (no mixed returns at the cones' edges); the noise grows with range
     LidarConfig config;
+    config.beam_divergence_mrad = 0.0;
     config.range_noise_sigma_m = sigma;
+    if (sigma == 0.0) config.range_noise_growth = 0.0;
     const Lidar lidar(config, track, {}, ground);
     Pose3 start = planar_pose(-3.0, 1.0, 0.2);
     start.position.z() = ground.height(-3.0, 1.0);
@@ -733,13 +881,16 @@ TEST(Lidar, OnUnevenGroundThePointsLieOnTheHeightModel) {
     const LidarScan scan = lidar.sweep(0, poses, rng);
 
     // the grid holds heights in single precision: a few micrometres at these heights
-    const double tolerance = 5.0 * sigma * (1.0 + 0.1) + 1e-4;
     const double facets = facet_deviation_m(cone_shape(ConeClass::kOrangeBig), 24);
     int ground_points = 0, off_the_plane = 0;
     std::vector<int> per_cone(track.cones.size() + 1, 0);
     for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
       const Eigen::Vector3d p = in_track(lidar, poses, scan.cloud, scan.cloud.points[i]);
       const int id = scan.labels.cone_id[i];
+      // the sigma at the point's range (the range drawn off it by the noise: 1e-4 of 5 sigma)
+      const double tolerance =
+          5.0 * (sigma + config.range_noise_growth * range_of(scan.cloud.points[i])) * (1.0 + 0.1) +
+          1e-4;
       if (id == core::PointCloudLabels::kGroundLabel) {
         ASSERT_NEAR(p.z(), ground.height(p.x(), p.y()), tolerance) << "ground point " << i;
         ++ground_points;
@@ -749,7 +900,7 @@ TEST(Lidar, OnUnevenGroundThePointsLieOnTheHeightModel) {
       const tracks::Cone& cone = track.cone(id);
       const Eigen::Vector3d base(cone.position.x(), cone.position.y(),
                                  ground.height(cone.position.x(), cone.position.y()));
-      ASSERT_LT(cone_shape(cone.cls).surface_distance(p - base), 5.0 * sigma + facets + 1e-4)
+      ASSERT_LT(cone_shape(cone.cls).surface_distance(p - base), tolerance + facets)
           << "cone " << id << " point " << (p - base).transpose();
       ++per_cone[id];
     }

@@ -113,6 +113,34 @@ TEST_F(ScenarioFile, OdometrySensorNoiseIsAScenarioKey) {
             std::string::npos);
 }
 
+// sensors.realism and the LiDAR's realism keys (issue 17): on by default with the model's
+// values, off clears them, a key beside it still applies, bad values refused at their key
+TEST_F(ScenarioFile, SensorRealismIsAScenarioKey) {
+  const std::string head = "event: trackdrive\nperception: lidar\n";
+  const sensors::LidarConfig model = *sensors::lidar_preset("vlp32c");
+  const Scenario on = load_scenario(write(head + "sensors: {lidar: {model: vlp32c}}\n"));
+  EXPECT_TRUE(on.sensors.realism);
+  EXPECT_EQ(on.sensors.lidar_config().detection_range_10pct_m, model.detection_range_10pct_m);
+  EXPECT_GT(on.sensors.lidar_config().beam_divergence_mrad, 0.0);
+  const Scenario off = load_scenario(
+      write(head + "sensors: {realism: off, lidar: {model: vlp32c, range_noise_growth: 2e-4}}\n"));
+  EXPECT_FALSE(off.sensors.realism);
+  const sensors::LidarConfig ideal = off.sensors.lidar_config();
+  EXPECT_EQ(ideal.detection_range_10pct_m, 0.0);
+  EXPECT_EQ(ideal.beam_divergence_mrad, 0.0);
+  EXPECT_EQ(ideal.range_noise_growth, 2e-4);
+  EXPECT_EQ(ideal.elevations_deg, model.elevations_deg);
+  EXPECT_NE(
+      error_of(head + "sensors: {realism: maybe}\n").find("sensors.realism: expected on or off"),
+      std::string::npos);
+  EXPECT_NE(error_of(head + "sensors: {lidar: {beam_divergence_mrad: -1}}\n")
+                .find("sensors.lidar.beam_divergence_mrad: a full angle in [0, 50] mrad"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "sensors: {lidar: {detection_range_10pct_m: 0.5}}\n")
+                .find("sensors.lidar.detection_range_10pct_m"),
+            std::string::npos);
+}
+
 // world.clutter (issue 17): read, 0 by default, a bad value refused at its key with the range
 TEST_F(ScenarioFile, ClutterDensityIsAScenarioKey) {
   const std::string head = "event: trackdrive\nperception: lidar\n";
