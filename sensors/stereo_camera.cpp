@@ -56,7 +56,7 @@ std::string StereoCameraConfig::validate() const {
   if (!(near_m >= 0.01 && near_m <= 10.0)) return "near_m: must be 0.01-10";
   if (!(far_m > 10.0 * near_m && far_m <= 2000.0))
     return "far_m: must exceed 10 x near_m and be at most 2000";
-  return "";
+  return response.validate();
 }
 
 core::CameraIntrinsics stereo_intrinsics(const StereoCameraConfig& c) {
@@ -84,7 +84,11 @@ StereoCamera::StereoCamera(const StereoCameraConfig& config, const mjModel* mode
                            const tracks::Track& track,
                            const std::vector<tracks::SceneryObject>& scenery,
                            const tracks::GroundModel& ground)
-    : config_(config), model_(model), scenery_(scenery), ground_(ground) {
+    : config_(config),
+      model_(model),
+      scenery_(scenery),
+      ground_(ground),
+      response_filter_(config.response, config.noise_seed) {
   // check the configuration against itself and the model's offscreen buffer
   if (const std::string error = config.validate(); !error.empty())
     throw std::invalid_argument("stereo camera: " + error);
@@ -173,6 +177,9 @@ void StereoCamera::render(const mjData* data, const core::Pose3& vehicle_in_trac
   // one pass per eye; depth only for the left one and only on request
   render_eye(labels.left_in_track, frame.left, with_depth ? &frame.left_depth_m : nullptr);
   render_eye(labels.right_in_track, frame.right, nullptr);
+  // the sensor's response, its noise drawn afresh for each frame and eye
+  response_filter_.apply(frame.left, 2 * static_cast<uint64_t>(stamp));
+  response_filter_.apply(frame.right, 2 * static_cast<uint64_t>(stamp) + 1);
   if (!with_depth) frame.left_depth_m.clear();
   last_left_in_track_ = labels.left_in_track;
   rendered_ = true;

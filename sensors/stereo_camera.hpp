@@ -14,6 +14,7 @@
 #include "core/measurements.hpp"
 #include "core/time.hpp"
 #include "sensors/cone_render.hpp"
+#include "sensors/image_response.hpp"
 #include "sensors/osmesa_context.hpp"
 #include "tracks/track.hpp"
 
@@ -40,6 +41,10 @@ struct StereoCameraConfig {
   /// Far clipping distance along the optical axis, metres: nothing beyond is drawn, and pixels
   /// that show nothing (the sky) read as infinite depth.
   double far_m = 100.0;
+  /// What the sensor does to the rendered light: exposure, shot and read noise, gamma.
+  ImageResponse response;
+  /// Seed of the images' noise (a run gives its scenario's seed).
+  uint64_t noise_seed = 0;
 
   /// Empty when the configuration is usable, otherwise a message that starts with the bad key.
   std::string validate() const;
@@ -138,6 +143,7 @@ class StereoCamera {
   mjvCamera free_camera_;
   mjvPerturb perturb_;
   std::vector<unsigned char> rgba_scratch_;
+  ImageResponseFilter response_filter_;
   // 1 / length of each pixel's ray (x, y, 1) in the optical frame, rows top to bottom
   std::vector<float> inverse_ray_length_;
   std::vector<float> depth_scratch_;

@@ -90,10 +90,13 @@ nlohmann::json bench_sensors(int repeats, bool closed_loop) {
     out["lidar_scan_ms_spread" + suffix] = spread(ms);
   }
 
-  // stereo: two 640x480 frames of the car at the start
-  {
+  // stereo: two 640x480 frames of the car at the start, with the sensor's noise (the default)
+  // and without it (`sensors.realism: off`)
+  for (const bool realism : {true, false}) {
     VehicleSim car(vehicle_models::VehicleParams{}, track.start.compose({-2.25, 0.0, 0.0}));
-    sensors::StereoCamera camera(sensors::StereoCameraConfig{}, car.model(), track);
+    sensors::StereoCameraConfig config;
+    if (!realism) config.response.full_well_e = 0.0;
+    sensors::StereoCamera camera(config, car.model(), track);
     core::StereoFrame frame;
     core::StereoLabels labels;
     camera.render(car.data(), car.vehicle_pose3(), 0, {}, false, frame, labels);  // warm-up
@@ -103,8 +106,9 @@ nlohmann::json bench_sensors(int repeats, bool closed_loop) {
       camera.render(car.data(), car.vehicle_pose3(), 0, {}, false, frame, labels);
       ms.push_back(ms_since(start));
     }
-    out["stereo_pair_ms"] = spread(ms)["median"];
-    out["stereo_pair_ms_spread"] = spread(ms);
+    const std::string suffix = realism ? "" : "_ideal";
+    out["stereo_pair_ms" + suffix] = spread(ms)["median"];
+    out["stereo_pair_ms_spread" + suffix] = spread(ms);
   }
 
   // the closed loop: trackdrive (ten laps) without and with the LiDAR at 10 Hz

@@ -934,6 +934,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   bool has_event = false;
   // sensors switched off explicitly, which a raw-data perception contradicts
   bool lidar_disabled = false;
+  bool camera_noise_given = false;
   bool camera_disabled = false;
   // the stack chosen under autonomy: (over the top-level perception: and slam:)
   AutonomyChoice autonomy;
@@ -1173,7 +1174,15 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                       number("baseline_m", cam.baseline_m, c),
                       number("mount_x_m", cam.mount_x_m, c),
                       number("mount_z_m", cam.mount_z_m, c),
-                      number("pitch_down_deg", cam.pitch_down_deg, c)});
+                      number("pitch_down_deg", cam.pitch_down_deg, c),
+                      number("exposure_ev", cam.response.exposure_ev, c),
+                      number("gamma", cam.response.gamma, c),
+                      {"full_well_e",
+                       [&](const YAML::Node& x) {
+                         cam.response.full_well_e = read_number(x, c, "full_well_e");
+                         camera_noise_given = true;
+                       }},
+                      number("read_noise_e", cam.response.read_noise_e, c)});
                }}});
        }},
       {"faults", [&](const YAML::Node& n) { s.faults = read_faults(n, context); }},
@@ -1205,6 +1214,9 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
     else
       s.track.generate_seed = s.seed;
   }
+
+  // without the sensors' realism the images carry no noise (unless the noise is asked for)
+  if (!s.sensors.realism && !camera_noise_given) s.sensors.camera.response.full_well_e = 0.0;
 
   // check the values as a whole
   if (const std::string e = s.vehicle.validate(); !e.empty()) context.fail_check("vehicle", e);

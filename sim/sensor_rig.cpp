@@ -28,6 +28,7 @@ namespace {
 // independent noise streams per sensor, derived from the scenario seed
 constexpr uint64_t kConeSensorStream = 101;
 constexpr uint64_t kLidarStream = 102;
+constexpr uint64_t kCameraNoiseStream = 103;
 // a LiDAR sweep goes to the worker in parts of this many column blocks (128 columns, 7 ms of
 // a 10 Hz sweep of 1800 columns), each as soon as the poses reach its last column
 constexpr int kBlocksPerPart = 4;
@@ -393,8 +394,10 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
   if (s.sensors.camera_enabled || raw_camera || tap_camera || dump_.sensors.count("camera")) {
     if (const std::string e = s.sensors.camera.validate(); !e.empty())
       throw std::invalid_argument("sensors.camera." + e);
-    camera_ = std::make_unique<sensors::StereoCamera>(s.sensors.camera, car.model(), track,
-                                                      scenery_, car.ground());
+    sensors::StereoCameraConfig camera = s.sensors.camera;
+    camera.noise_seed = core::derive_seed(s.seed, kCameraNoiseStream);
+    camera_ = std::make_unique<sensors::StereoCamera>(camera, car.model(), track, scenery_,
+                                                      car.ground());
     camera_period_us_ = core::from_seconds(1.0 / s.sensors.camera_rate_hz);
     with_depth_ = s.sensors.camera_depth;
     camera_latency_us_ = core::from_seconds(s.sensors.camera_latency_s);

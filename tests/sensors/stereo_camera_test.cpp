@@ -370,6 +370,36 @@ TEST(StereoCamera, WritesViewablePngs) {
   EXPECT_EQ(raw[(3 * w + 1) * 100 + 1 + 3 * 200], rig.frame.left.rgb[3 * (w * 100 + 200)]);
 }
 
+// The sensor's noise (issue 17) is on both images, of the size its response gives at each
+// pixel's level, and changes nothing the renderer decides: the noiseless image is the same
+// scene, pixel for pixel within the noise.
+TEST(StereoCamera, TheSensorsNoiseIsOnBothImages) {
+  StereoCameraConfig quiet;
+  quiet.response.full_well_e = 0.0;
+  const Rig noisy, clean(quiet);
+  for (const bool left : {true, false}) {
+    const core::RgbImage& a = left ? noisy.frame.left : noisy.frame.right;
+    const core::RgbImage& b = left ? clean.frame.left : clean.frame.right;
+    ASSERT_EQ(a.rgb.size(), b.rgb.size());
+    // the noise in units of its own sigma at the clean level, away from the clipped ends
+    double squares = 0.0;
+    int n = 0, far_off = 0;
+    for (size_t i = 0; i < a.rgb.size(); ++i) {
+      if (b.rgb[i] < 8 || b.rgb[i] > 247) continue;
+      const double sigma = std::sqrt(std::pow(quiet.response.noise_sigma(b.rgb[i]), 2) +
+                                     std::pow(StereoCameraConfig{}.response.noise_sigma(b.rgb[i]), 2) +
+                                     1.0 / 12.0);
+      const double z = (static_cast<double>(a.rgb[i]) - b.rgb[i]) / sigma;
+      squares += z * z;
+      far_off += std::abs(z) > 6.0;
+      ++n;
+    }
+    ASSERT_GT(n, 100000);
+    EXPECT_NEAR(std::sqrt(squares / n), 1.0, 0.1) << (left ? "left" : "right");
+    EXPECT_LT(far_off, n / 100000 + 1) << (left ? "left" : "right");
+  }
+}
+
 TEST(StereoCamera, ConfigurationErrorsNameTheKey) {
   EXPECT_EQ(StereoCameraConfig{}.validate(), "");
   const auto error = [](auto mutate) {

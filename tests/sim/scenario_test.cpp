@@ -139,6 +139,16 @@ TEST_F(ScenarioFile, SensorRealismIsAScenarioKey) {
   EXPECT_NE(error_of(head + "sensors: {lidar: {detection_range_10pct_m: 0.5}}\n")
                 .find("sensors.lidar.detection_range_10pct_m"),
             std::string::npos);
+  // the camera: noise on with realism, off without it unless asked for
+  EXPECT_GT(on.sensors.camera.response.full_well_e, 0.0);
+  EXPECT_EQ(off.sensors.camera.response.full_well_e, 0.0);
+  const Scenario asked = load_scenario(write(
+      head + "sensors: {realism: off, camera: {full_well_e: 5000, exposure_ev: -0.5, gamma: 2}}\n"));
+  EXPECT_EQ(asked.sensors.camera.response.full_well_e, 5000.0);
+  EXPECT_EQ(asked.sensors.camera.response.exposure_ev, -0.5);
+  EXPECT_EQ(asked.sensors.camera.response.gamma, 2.0);
+  EXPECT_NE(error_of(head + "sensors: {camera: {gamma: 0}}\n").find("sensors.camera.gamma: expected"),
+            std::string::npos);
 }
 
 // world.clutter (issue 17): read, 0 by default, a bad value refused at its key with the range
