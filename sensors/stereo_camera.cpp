@@ -56,6 +56,8 @@ std::string StereoCameraConfig::validate() const {
   if (!(near_m >= 0.01 && near_m <= 10.0)) return "near_m: must be 0.01-10";
   if (!(far_m > 10.0 * near_m && far_m <= 2000.0))
     return "far_m: must exceed 10 x near_m and be at most 2000";
+  if (!(light_ambient >= 0.0 && light_ambient <= 1.0)) return "light_ambient: must be 0-1";
+  if (!(light_diffuse >= 0.0 && light_diffuse <= 1.0)) return "light_diffuse: must be 0-1";
   return response.validate();
 }
 
@@ -298,6 +300,8 @@ void StereoCamera::aim(const core::Pose3& eye_in_track) {
     for (int i = 0; i < 3; ++i) {
       light.pos[i] = static_cast<float>(eye_in_track.position[i]);
       light.dir[i] = static_cast<float>(forward[i]);
+      light.ambient[i] = static_cast<float>(config_.light_ambient);
+      light.diffuse[i] = static_cast<float>(config_.light_diffuse);
     }
   }
 }

@@ -41,6 +41,10 @@ struct StereoCameraConfig {
   /// Far clipping distance along the optical axis, metres: nothing beyond is drawn, and pixels
   /// that show nothing (the sky) read as infinite depth.
   double far_m = 100.0;
+  /// The light on the scene, from the eye (as the model's headlight): its ambient and diffuse
+  /// intensity, 0-1 per channel (the model's 0.45 and 0.55 by default).
+  double light_ambient = 0.45;
+  double light_diffuse = 0.55;
   /// What the sensor does to the rendered light: exposure, shot and read noise, gamma.
   ImageResponse response;
   /// Seed of the images' noise (a run gives its scenario's seed).

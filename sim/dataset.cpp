@@ -535,6 +535,8 @@ DatasetSummary write_dataset(const DatasetOptions& o, std::ostream& log) {
                     {"grass_edge", grass},
                     {"grade_percent", grade},
                     {"crown_percent", crown}};
+      // and the sensors' look (light, exposure, noise) from the run's own seed
+      sets.push_back("world.randomise=on");
     }
     sets.push_back("sensors.camera.enabled=true");
     if (o.lidar) sets.push_back("sensors.lidar.enabled=true");
@@ -550,6 +552,7 @@ DatasetSummary write_dataset(const DatasetOptions& o, std::ostream& log) {
       s = load_scenario(scenario_file, sets, seed);
     }
     const tracks::Track track = scenario_track(s);
+    if (s.randomise) world_json["look"] = s.look;
 
     char name[32];
     std::snprintf(name, sizeof(name), "%03d", run);

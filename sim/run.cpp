@@ -1023,6 +1023,8 @@ RunResult run_scenario(const Scenario& s, const tracks::Track& track, const RunO
     m["world"]["ground_relief_m"] = g.max_z - g.min_z;
     m["world"]["ground_cell_m"] = g.cell_m;
   }
+  // the sensors' look world.randomise drew (a run without it has no such key)
+  if (s.randomise) m["world"]["look"] = s.look;
   // the plug-ins in the loop, by name (a run of the built-in stack has no such key)
   if (s.perception_plugin || s.slam_plugin || s.driver_plugin) {
     auto name = [](const std::optional<PluginSpec>& p, const std::string& builtin) {

@@ -15,6 +15,7 @@
 
 #include "core/error.hpp"
 #include "core/files.hpp"
+#include "core/rng.hpp"
 #include "sensors/lidar_config.hpp"
 #include "slam/factory.hpp"
 #include "vehicle_models/mjcf_builder.hpp"
@@ -1024,7 +1025,17 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
          const Where w{&context, "world"};
          read_section(
              n, w,
-             {{"clutter",
+             {{"randomise",
+               [&](const YAML::Node& v) {
+                 const std::string text = v.IsScalar() ? v.Scalar() : std::string();
+                 if (text == "on" || text == "true")
+                   s.randomise = true;
+                 else if (text == "off" || text == "false")
+                   s.randomise = false;
+                 else
+                   w.fail(v, "randomise", "expected on or off, got " + describe(v));
+               }},
+              {"clutter",
                [&](const YAML::Node& v) {
                  const Where c{&context, "world.clutter"};
                  auto& cl = s.clutter;
@@ -1175,6 +1186,8 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                       number("mount_x_m", cam.mount_x_m, c),
                       number("mount_z_m", cam.mount_z_m, c),
                       number("pitch_down_deg", cam.pitch_down_deg, c),
+                      number("light_ambient", cam.light_ambient, c),
+                      number("light_diffuse", cam.light_diffuse, c),
                       number("exposure_ev", cam.response.exposure_ev, c),
                       number("gamma", cam.response.gamma, c),
                       {"full_well_e",
@@ -1217,6 +1230,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
 
   // without the sensors' realism the images carry no noise (unless the noise is asked for)
   if (!s.sensors.realism && !camera_noise_given) s.sensors.camera.response.full_well_e = 0.0;
+  if (s.randomise) randomise_look(s);
 
   // check the values as a whole
   if (const std::string e = s.vehicle.validate(); !e.empty()) context.fail_check("vehicle", e);
@@ -1434,6 +1448,38 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   return s;
 }
 
+namespace {
+
+// world.randomise's stream of the scenario seed
+constexpr uint64_t kLookStream = 0x100c;
+
+}  // namespace
+
+void randomise_look(Scenario& s) {
+  // each value from its own range, in a fixed order (so that the same seed gives the same look
+  // whatever else the scenario says), rounded for the reader of metrics.json
+  core::Rng rng(core::derive_seed(s.seed, kLookStream));
+  auto draw = [&](const char* key, double lo, double hi, double per_unit) {
+    const double v = std::round(core::uniform(rng, lo, hi) * per_unit) / per_unit;
+    s.look[key] = v;
+    return v;
+  };
+  sensors::StereoCameraConfig& cam = s.sensors.camera;
+  cam.light_ambient = draw("camera_light_ambient", 0.25, 0.6, 100);
+  cam.light_diffuse = draw("camera_light_diffuse", 0.3, 0.8, 100);
+  cam.response.exposure_ev = draw("camera_exposure_ev", -1.0, 1.0, 100);
+  // a full well from 3000 to 30000 electrons, even in its logarithm
+  cam.response.full_well_e = std::round(std::exp(core::uniform(rng, std::log(3000.0),
+                                                               std::log(30000.0))) /
+                                        10.0) *
+                             10.0;
+  s.look["camera_full_well_e"] = cam.response.full_well_e;
+  cam.response.read_noise_e = draw("camera_read_noise_e", 5.0, 30.0, 10);
+  s.sensors.lidar_range_noise_scale = draw("lidar_range_noise_scale", 0.8, 1.5, 100);
+  s.sensors.lidar_detection_range_scale = draw("lidar_detection_range_scale", 0.8, 1.25, 100);
+  s.sensors.lidar_ground_reflectivity = draw("lidar_ground_reflectivity", 0.06, 0.2, 200);
+}
+
 sensors::LidarConfig SensorSettings::lidar_config() const {
   std::optional<sensors::LidarConfig> c = sensors::lidar_preset(lidar_model);
   const std::optional<core::Pose3> mount = sensors::lidar_mount_preset(lidar_mount);
@@ -1445,6 +1491,10 @@ sensors::LidarConfig SensorSettings::lidar_config() const {
   if (lidar_range_noise_growth) c->range_noise_growth = *lidar_range_noise_growth;
   if (lidar_detection_range_10pct_m) c->detection_range_10pct_m = *lidar_detection_range_10pct_m;
   if (lidar_beam_divergence_mrad) c->beam_divergence_mrad = *lidar_beam_divergence_mrad;
+  c->range_noise_sigma_m *= lidar_range_noise_scale;
+  c->range_noise_growth *= lidar_range_noise_scale;
+  c->detection_range_10pct_m *= lidar_detection_range_scale;
+  if (lidar_ground_reflectivity) c->reflectivity.ground = *lidar_ground_reflectivity;
   return *c;
 }
 

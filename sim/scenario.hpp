@@ -60,6 +60,10 @@ struct SensorSettings {
   /// `sensors.lidar.<key>`: the model's noise and realism overridden (unset: the model's).
   std::optional<double> lidar_range_noise_sigma_m, lidar_range_noise_growth,
       lidar_detection_range_10pct_m, lidar_beam_divergence_mrad;
+  /// The LiDAR's range noise and detection range times these, and the asphalt's reflectivity
+  /// (`world.randomise` draws them; 1, 1 and the model's otherwise).
+  double lidar_range_noise_scale = 1.0, lidar_detection_range_scale = 1.0;
+  std::optional<double> lidar_ground_reflectivity;
   /// The LiDAR these settings describe: the model's preset on its mount, its realism cleared
   /// when realism is off, then the overrides (std::invalid_argument for an unknown model).
   sensors::LidarConfig lidar_config() const;
@@ -172,6 +176,11 @@ struct Scenario {
   /// The ground under the track (`world.ground`): one height model for the physics, the LiDAR,
   /// the camera and the cones. All zero (the default) is the flat plane z = 0.
   tracks::GroundConfig ground;
+  /// `world.randomise`: the sensors' look drawn from the seed (domain randomisation): the
+  /// camera's light, exposure and noise, the LiDAR's noise, fading and the asphalt's
+  /// reflectivity. What was drawn, by key, for metrics.json's world.look (empty when off).
+  bool randomise = false;
+  std::map<std::string, double> look;
   /// Sensor and vehicle faults (`faults:`), in the order read: kinds in fault_kind_names()
   /// order, each kind's windows in the order given. Empty: none.
   std::vector<Fault> faults;
@@ -193,6 +202,10 @@ std::filesystem::path find_scenario(const std::string& name_or_path);
 Scenario load_scenario(const std::filesystem::path& file,
                        const std::vector<std::string>& overrides = {},
                        std::optional<uint64_t> seed = std::nullopt);
+
+/// world.randomise: draws the sensors' look from the scenario's seed into `s` (overriding what
+/// the scenario said of those keys) and records it in s.look. load_scenario calls it.
+void randomise_look(Scenario& s);
 
 /// Reads a vehicle parameter file (keys of VehicleParams). Throws core::InputError.
 vehicle_models::VehicleParams load_vehicle(const std::filesystem::path& file);

@@ -751,7 +751,8 @@ void add_dataset_command(CLI::App& app, int& status) {
                   "Fewest seen pixels of a cone that get a box (default 16)");
   cmd->add_flag("--no-lidar", *no_lidar, "No LiDAR sweeps");
   cmd->add_flag("--fixed-world", *fixed_world,
-                "Keep the scenario's clutter and ground (default: drawn per run from the seed)");
+                "Keep the scenario's clutter, ground and sensors' look (default: drawn per run "
+                "from the seed)");
   cmd->add_option("--out", o->out_dir, "Folder to write (default runs/dataset-<UTC stamp>)");
   cmd->callback([=, &status] {
     namespace sim = conesim::sim;

@@ -400,6 +400,28 @@ TEST(StereoCamera, TheSensorsNoiseIsOnBothImages) {
   }
 }
 
+// The light on the scene is a key (world.randomise draws it): a dimmer light gives a darker
+// ground, and the defaults are the model's own headlight.
+TEST(StereoCamera, TheLightIsAKey) {
+  StereoCameraConfig quiet;
+  quiet.response.full_well_e = 0.0;
+  StereoCameraConfig dim = quiet, model_light = quiet;
+  dim.light_ambient = 0.25;
+  dim.light_diffuse = 0.3;
+  model_light.light_ambient = 0.45;
+  model_light.light_diffuse = 0.55;
+  const Rig normal(quiet), darker(dim), same(model_light);
+  // the lower half of the image: mostly ground
+  auto mean_lower = [](const core::RgbImage& image) {
+    double sum = 0.0;
+    const size_t from = image.rgb.size() / 2;
+    for (size_t i = from; i < image.rgb.size(); ++i) sum += image.rgb[i];
+    return sum / static_cast<double>(image.rgb.size() - from);
+  };
+  EXPECT_LT(mean_lower(darker.frame.left), 0.8 * mean_lower(normal.frame.left));
+  EXPECT_EQ(same.frame.left.rgb, normal.frame.left.rgb);
+}
+
 TEST(StereoCamera, ConfigurationErrorsNameTheKey) {
   EXPECT_EQ(StereoCameraConfig{}.validate(), "");
   const auto error = [](auto mutate) {

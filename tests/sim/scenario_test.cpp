@@ -151,6 +151,45 @@ TEST_F(ScenarioFile, SensorRealismIsAScenarioKey) {
             std::string::npos);
 }
 
+// world.randomise (issue 17): the sensors' look drawn from the seed, the same for the same seed
+// and another for another, every value within its range and recorded; off leaves the defaults
+TEST_F(ScenarioFile, RandomisedLookComesFromTheSeed) {
+  const std::string text = "event: autocross\nperception: fused\nworld: {randomise: on}\n";
+  const Scenario a = load_scenario(write(text), {"seed=5"});
+  const Scenario b = load_scenario(write(text), {"seed=5"});
+  const Scenario c = load_scenario(write(text), {"seed=6"});
+  EXPECT_EQ(a.look, b.look);
+  EXPECT_NE(a.look, c.look);
+  ASSERT_EQ(a.look.size(), 8u);
+  EXPECT_EQ(a.look.at("camera_exposure_ev"), a.sensors.camera.response.exposure_ev);
+  EXPECT_EQ(a.look.at("camera_full_well_e"), a.sensors.camera.response.full_well_e);
+  EXPECT_EQ(a.look.at("camera_light_diffuse"), a.sensors.camera.light_diffuse);
+  EXPECT_EQ(a.sensors.camera.validate(), "");
+  EXPECT_EQ(a.sensors.lidar_config().validate(), "");
+  // over many seeds every value stays in its range and the ranges are used
+  double lowest = 1e9, highest = -1e9;
+  for (uint64_t seed = 1; seed <= 40; ++seed) {
+    const Scenario s = load_scenario(write(text), {"seed=" + std::to_string(seed)});
+    const double ev = s.sensors.camera.response.exposure_ev;
+    EXPECT_GE(ev, -1.0);
+    EXPECT_LE(ev, 1.0);
+    EXPECT_GE(s.sensors.camera.response.full_well_e, 3000.0);
+    EXPECT_LE(s.sensors.camera.response.full_well_e, 30000.0);
+    EXPECT_GE(*s.sensors.lidar_ground_reflectivity, 0.06);
+    EXPECT_LE(*s.sensors.lidar_ground_reflectivity, 0.2);
+    lowest = std::min(lowest, ev);
+    highest = std::max(highest, ev);
+  }
+  EXPECT_LT(lowest, -0.5);
+  EXPECT_GT(highest, 0.5);
+  const Scenario plain = load_scenario(write("event: autocross\n"));
+  EXPECT_TRUE(plain.look.empty());
+  EXPECT_EQ(plain.sensors.camera.response.exposure_ev, 0.0);
+  EXPECT_NE(error_of("event: autocross\nworld: {randomise: sometimes}\n")
+                .find("world.randomise: expected on or off"),
+            std::string::npos);
+}
+
 // world.clutter (issue 17): read, 0 by default, a bad value refused at its key with the range
 TEST_F(ScenarioFile, ClutterDensityIsAScenarioKey) {
   const std::string head = "event: trackdrive\nperception: lidar\n";
