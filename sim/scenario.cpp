@@ -164,6 +164,19 @@ bool read_bool(const YAML::Node& n, const Where& w, const std::string& key) {
   w.fail(n, key, "expected true or false, got " + describe(n));
 }
 
+// a switch: on or off (or true or false)
+Field on_off(const std::string& key, bool& target, const Where& w) {
+  return {key, [&target, w, key](const YAML::Node& n) {
+            const std::string text = n.IsScalar() ? n.Scalar() : std::string();
+            if (text == "on" || text == "true")
+              target = true;
+            else if (text == "off" || text == "false")
+              target = false;
+            else
+              w.fail(n, key, "expected on or off, got " + describe(n));
+          }};
+}
+
 Field number(const std::string& key, double& target, const Where& w) {
   return {key, [&target, w, key](const YAML::Node& n) { target = read_number(n, w, key); }};
 }
@@ -1025,16 +1038,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
          const Where w{&context, "world"};
          read_section(
              n, w,
-             {{"randomise",
-               [&](const YAML::Node& v) {
-                 const std::string text = v.IsScalar() ? v.Scalar() : std::string();
-                 if (text == "on" || text == "true")
-                   s.randomise = true;
-                 else if (text == "off" || text == "false")
-                   s.randomise = false;
-                 else
-                   w.fail(v, "randomise", "expected on or off, got " + describe(v));
-               }},
+             {on_off("randomise", s.randomise, w),
               {"clutter",
                [&](const YAML::Node& v) {
                  const Where c{&context, "world.clutter"};
@@ -1078,17 +1082,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
          read_section(
              n, w,
              {number("driver_rate_hz", ss.driver_rate_hz, w),
-              {"realism",
-               [&](const YAML::Node& v) {
-                 // on/off (YAML 1.1 reads them as booleans), or true/false
-                 const std::string text = v.IsScalar() ? v.Scalar() : std::string();
-                 if (text == "on" || text == "true")
-                   ss.realism = true;
-                 else if (text == "off" || text == "false")
-                   ss.realism = false;
-                 else
-                   w.fail(v, "realism", "expected on or off, got " + describe(v));
-               }},
+              on_off("realism", ss.realism, w),
               number("cone_range_m", ss.cone_range_m, w),
               number("cone_fov_deg", ss.cone_fov_deg, w),
               {"cone_sensor",
