@@ -156,6 +156,7 @@ int append_scenery(mjvScene* scene, const std::vector<tracks::SceneryObject>& sc
                       std::hypot(object.radius_m, half_height)))
       continue;
     const Eigen::Matrix3d turn =
+        object.tilt *
         Eigen::AngleAxisd(object.pose.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
     for (const tracks::ScenePrimitive& p : object.parts) {
       if (scene->ngeom >= scene->maxgeom) {

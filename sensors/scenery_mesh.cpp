@@ -24,6 +24,7 @@ SceneryMesh build_scenery_mesh(const tracks::SceneryObject& object, int sides) {
   SceneryMesh m;
   // object frame -> the frame at the object's place, turned by its heading
   const Eigen::Matrix3d turn =
+      object.tilt *
       Eigen::AngleAxisd(object.pose.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   for (const tracks::ScenePrimitive& p : object.parts) {
     const auto place = [&](const Eigen::Vector3d& local) {

@@ -371,6 +371,7 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
 
   // the scenery the LiDAR and the camera see (nothing at density 0), from its own stream
   scenery_ = tracks::place_scenery(track, s.clutter, s.seed);
+  tracks::lay_on_ground(scenery_, car.ground());
 
   // raw-data perception switches on the sensors it needs
   const bool raw_lidar = s.perception == "lidar" || s.perception == "fused";

@@ -312,4 +312,17 @@ std::vector<SceneryObject> place_scenery(const Track& track, const ClutterConfig
   return out;
 }
 
+void lay_on_ground(std::vector<SceneryObject>& objects, const GroundModel& ground) {
+  for (SceneryObject& o : objects) {
+    if (o.cls != ClutterClass::kGrassEdge) continue;
+    // the plane through the ground over the strip's footprint: its slopes from heights a
+    // strip's half length and half width away
+    const double x = o.pose.x, y = o.pose.y, h = 0.5 * kEdgeStripM;
+    const double gx = (ground.height(x + h, y) - ground.height(x - h, y)) / (2.0 * h);
+    const double gy = (ground.height(x, y + h) - ground.height(x, y - h)) / (2.0 * h);
+    const Eigen::Vector3d normal = Eigen::Vector3d(-gx, -gy, 1.0).normalized();
+    o.tilt = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), normal).toRotationMatrix();
+  }
+}
+
 }  // namespace conesim::tracks

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/clutter.hpp"
+#include "tracks/ground.hpp"
 #include "tracks/track.hpp"
 
 namespace conesim::tracks {
@@ -47,7 +48,15 @@ struct SceneryObject {
   double radius_m = 0.0;
   /// ... and below this height.
   double height_m = 0.0;
+  /// The ground's slope under the object, applied after its heading (identity: level; set by
+  /// lay_on_ground for what lies flat on the ground).
+  Eigen::Matrix3d tilt = Eigen::Matrix3d::Identity();
 };
+
+/// Tilts what lies flat on the ground (the grass edge's strips) to the slope of the ground under
+/// it, so that a strip on a grade or a crown stays a 6 cm step all along instead of standing
+/// out of the slope at one end. Objects that stand (barriers, tents, people) stay level.
+void lay_on_ground(std::vector<SceneryObject>& objects, const GroundModel& ground);
 
 /// The scenario's `world.clutter` block.
 struct ClutterConfig {

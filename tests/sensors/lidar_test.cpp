@@ -914,6 +914,47 @@ TEST(Lidar, OnUnevenGroundThePointsLieOnTheHeightModel) {
   }
 }
 
+// Grass strips laid on a grade (tracks::lay_on_ground) stay a 6 cm step all along: every point
+// on a strip lies at most its height above the ground under it, where a level strip stands out
+// of the slope at its downhill end.
+TEST(Lidar, GrassLaidOnAGradeFollowsTheGround) {
+  tracks::Track track = ring_of_cones();
+  track.start = {-43.0, 0.0, 0.0};
+  tracks::GroundConfig shape;
+  shape.grade_percent = 4.0;
+  shape.grade_heading_deg = 0.0;
+  const tracks::GroundModel ground(track, shape, 3);
+  // strips ahead of the car, along and across the grade
+  std::vector<tracks::SceneryObject> strips;
+  for (const core::Pose2& at : {core::Pose2{6.0, 3.0, 0.0}, core::Pose2{6.0, -3.0, 1.5708},
+                                core::Pose2{9.0, 0.5, 0.0}})
+    strips.push_back(tracks::make_scenery_object(core::ClutterClass::kGrassEdge, at));
+  const double strip_height = strips[0].height_m;
+  Pose3 start = planar_pose(0.0, 0.0, 0.0);
+  start.position.z() = ground.height(0.0, 0.0);
+  const PoseHistory poses = drive(start, 0.0, 0, 200'000);
+  for (const bool laid : {false, true}) {
+    std::vector<tracks::SceneryObject> objects = strips;
+    if (laid) tracks::lay_on_ground(objects, ground);
+    const Lidar lidar(noiseless(), track, objects, ground);
+    core::Rng rng(2);
+    const LidarScan scan = lidar.sweep(0, poses, rng);
+    double highest = 0.0;
+    int on_grass = 0;
+    for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+      if (core::clutter_of_label(scan.labels.cone_id[i]) != core::ClutterClass::kGrassEdge) continue;
+      const Eigen::Vector3d p = in_track(lidar, poses, scan.cloud, scan.cloud.points[i]);
+      highest = std::max(highest, p.z() - ground.height(p.x(), p.y()));
+      ++on_grass;
+    }
+    ASSERT_GT(on_grass, 50);
+    if (laid)
+      EXPECT_LT(highest, strip_height + 0.002);  // (the grade is a plane: the strip lies flat on it)
+    else
+      EXPECT_GT(highest, strip_height + 0.02);  // up to 8 cm out of the slope at the downhill end
+  }
+}
+
 // The flat ground keeps its analytic path: a flat ground model gives the scan of no model,
 // bit for bit.
 TEST(Lidar, AFlatGroundModelChangesNoPoint) {
