@@ -167,7 +167,8 @@ PerceptionRunner::PerceptionRunner(const Scenario& s, const tracks::Track& track
   uses_camera_ = camera;
   if (lidar) {
     lidar_detector_ = std::make_unique<slam::frontend::LidarConeDetector>(
-        sdk_bridge::lidar_detector_config(*sensors::lidar_preset(s.sensors.lidar_model)),
+        // (the scenario's LiDAR: its beam pattern, noise and spot, as a team calibrates them)
+        sdk_bridge::lidar_detector_config(s.sensors.lidar_config()),
         lidar_mount);
     lidar_score_ = std::make_unique<PerceptionScorer>(lidar_xy_, kScoreBandM, kScoreRangeM);
     lidar_returned_score_ =
