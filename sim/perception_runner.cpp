@@ -98,9 +98,8 @@ PerceptionView perception_view(const Scenario& s) {
   if (s.perception == "lidar" || s.perception == "fused" || plugin_lidar) {
     // the farthest ground distance at which two rings still hit a small cone between 5 cm and
     // its top, from the mount's height (a level mount)
-    const sensors::LidarConfig lidar = *sensors::lidar_preset(s.sensors.lidar_model);
-    const core::Pose3 mount = *sensors::lidar_mount_preset(s.sensors.lidar_mount);
-    const double height_m = mount.position.z();
+    const sensors::LidarConfig lidar = s.sensors.lidar_config();
+    const double height_m = lidar.mount.position.z();
     const double cone_m = core::cone_size(core::ConeClass::kBlue).height_m;
     double visible = 0.0;
     for (double d = 1.0; d <= 30.0; d += 0.1) {
@@ -111,7 +110,7 @@ PerceptionView perception_view(const Scenario& s) {
       }
       if (rings >= 2) visible = d;
     }
-    v.sensor_x_m = mount.position.x();
+    v.sensor_x_m = lidar.mount.position.x();
     v.min_range_m = 1.0;
     v.max_range_m = std::min(visible, 15.0);
     v.fov_deg = 360.0;
