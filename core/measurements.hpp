@@ -80,6 +80,27 @@ struct CameraIntrinsics {
   double fy = 0.0;
   double cx = 0.0;
   double cy = 0.0;
+  /// Lens distortion in OpenCV's model and order (k1, k2, p1, p2, k3): a point (x, y) = (X/Z,
+  /// Y/Z) in the camera frame is drawn at (fx xd + cx, fy yd + cy) with r2 = x^2 + y^2,
+  /// radial = 1 + k1 r2 + k2 r2^2 + k3 r2^3, xd = x radial + 2 p1 x y + p2 (r2 + 2 x^2),
+  /// yd = y radial + p1 (r2 + 2 y^2) + 2 p2 x y. All zero: a pinhole camera.
+  std::array<double, 5> distortion{};
+
+  bool distorted() const {
+    for (const double d : distortion)
+      if (d != 0.0) return true;
+    return false;
+  }
+  /// The pixel where the ray through the normalised point (x, y) = (X/Z, Y/Z) is drawn.
+  Eigen::Vector2d pixel_of(const Eigen::Vector2d& normalised) const {
+    const double x = normalised.x(), y = normalised.y();
+    const double r2 = x * x + y * y;
+    const auto& [k1, k2, p1, p2, k3] = distortion;
+    const double radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+    const double xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
+    const double yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
+    return {fx * xd + cx, fy * yd + cy};
+  }
 };
 
 /// An 8-bit RGB image, rows top to bottom.
@@ -146,6 +167,12 @@ struct GnssFix {
 /// index, or kFalsePositive.
 struct ObservationLabels {
   static constexpr int kFalsePositive = -1;
+  /// A cone standing off the track (world.clutter's spare cones): the k-th is labelled
+  /// kOffTrackCone - k. It is a real cone, so finding it is no false detection, and observing it
+  /// again and again as one landmark is a right association; it is not a cone of the track.
+  static constexpr int kOffTrackCone = -1000;
+  static constexpr int off_track_cone(int k) { return kOffTrackCone - k; }
+  static constexpr bool is_off_track_cone(int label) { return label <= kOffTrackCone; }
   std::vector<int> cone_id;
 };
 

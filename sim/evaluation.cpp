@@ -71,7 +71,8 @@ void PerceptionScorer::count(double range_m, bool has_true, bool has_detection, 
 }
 
 std::vector<int> PerceptionScorer::add_frame(const core::ConeObservations& detections,
-                                             const std::vector<TrueConeInView>& truth) {
+                                             const std::vector<TrueConeInView>& truth,
+                                             const std::vector<OffTrackConeInView>& off_track) {
   ++frames_;
   // one to one by distance within the cut-off
   const auto& cones = detections.cones;
@@ -99,9 +100,18 @@ std::vector<int> PerceptionScorer::add_frame(const core::ConeObservations& detec
   for (size_t i = 0; i < cones.size(); ++i) {
     if (assignment[i] >= 0) {
       true_ids[i] = truth[assignment[i]].id;
-    } else {
-      count((cones[i].position - sensor_).norm(), false, true, false, 0.0);
+      continue;
     }
+    // the nearest off-track cone within the cut-off takes it (not counted either way)
+    double nearest_m = cutoff_m_;
+    for (const OffTrackConeInView& o : off_track)
+      if (const double d = (cones[i].position - o.position).norm(); d <= nearest_m)
+        nearest_m = d, true_ids[i] = o.label;
+    const double range_m = (cones[i].position - sensor_).norm();
+    if (true_ids[i] == -1)
+      count(range_m, false, true, false, 0.0);
+    else if (range_m < max_range_m_)
+      ++off_track_detections_;
   }
   return true_ids;
 }
@@ -144,6 +154,7 @@ nlohmann::json PerceptionScorer::metrics() const {
   const nlohmann::json near15 = ratios(within_15m_), near10 = ratios(within_10m_);
   m["frames"] = frames_;
   m["max_range_m"] = max_range_m_;
+  m["off_track_cone_detections"] = off_track_detections_;
   m["recall_15m"] = near15["recall"];
   m["precision_15m"] = near15["precision"];
   m["colour_accuracy_10m"] = near10["colour_accuracy"];

@@ -11,6 +11,7 @@
 #include "core/autonomy_types.hpp"
 #include "core/cone.hpp"
 #include "core/geometry.hpp"
+#include "core/measurements.hpp"
 
 namespace conesim::sim {
 
@@ -33,6 +34,14 @@ struct TrueConeInView {
   core::Vec2 position = core::Vec2::Zero();
 };
 
+/// A cone standing off the track in view (a spare cone of world.clutter), in the same frame:
+/// detecting it is neither a true nor a false detection (as KITTI's DontCare regions), and its
+/// detections are labelled with ObservationLabels::off_track_cone.
+struct OffTrackConeInView {
+  int label = core::ObservationLabels::kOffTrackCone;
+  core::Vec2 position = core::Vec2::Zero();
+};
+
 /// Scores perception frame by frame against the true cones in view: recall, precision, colour
 /// accuracy and position error overall and per range band (metrics.json `perception`).
 class PerceptionScorer {
@@ -45,9 +54,11 @@ class PerceptionScorer {
   /// Matches the frame's detections to the true cones in view (Hungarian on distance) and
   /// counts them. A true cone falls in the band of its range from the sensor, a matched
   /// detection in its true cone's band, an unmatched one in the band of its own range. Returns
-  /// for each detection the id of its true cone, or -1.
+  /// for each detection the id of its true cone, or -1. A detection left unmatched within the
+  /// cut-off of an off-track cone is not counted, and gets that cone's label.
   std::vector<int> add_frame(const core::ConeObservations& detections,
-                             const std::vector<TrueConeInView>& truth);
+                             const std::vector<TrueConeInView>& truth,
+                             const std::vector<OffTrackConeInView>& off_track = {});
 
   /// The figures: recall, precision, colour_accuracy, position_rmse_m (all within
   /// max_range_m), frames, recall_15m, precision_15m, colour_accuracy_10m, and bands (from_m,
@@ -77,6 +88,8 @@ class PerceptionScorer {
   double max_range_m_;
   double cutoff_m_;
   long frames_ = 0;
+  // detections within max_range_m given to an off-track cone (counted neither way)
+  long off_track_detections_ = 0;
   std::vector<Tally> bands_;
   Tally within_15m_;
   Tally within_10m_;

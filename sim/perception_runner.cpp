@@ -186,6 +186,24 @@ PerceptionRunner::~PerceptionRunner() {
   if (plugin_guard_) keep_if_abandoned(*plugin_guard_, plugin_);
 }
 
+void PerceptionRunner::set_scenery(const std::vector<tracks::SceneryObject>& scenery) {
+  scenery_ = scenery;
+  off_track_cones_.clear();
+  for (const tracks::SceneryObject& o : scenery_)
+    if (o.cls == core::ClutterClass::kSpareCone) off_track_cones_.push_back(o.pose.position());
+}
+
+std::vector<OffTrackConeInView> PerceptionRunner::off_track_in_view(
+    const core::Pose2& true_pose) const {
+  std::vector<OffTrackConeInView> out;
+  for (size_t k = 0; k < off_track_cones_.size(); ++k) {
+    const core::Vec2 local = true_pose.inverse_transform(off_track_cones_[k]);
+    if (local.norm() > kScoreRangeM + kClutterCutoffM + 2.0) continue;
+    out.push_back({core::ObservationLabels::off_track_cone(static_cast<int>(k)), local});
+  }
+  return out;
+}
+
 std::vector<TrueConeInView> PerceptionRunner::truth_in_view(
     const core::Pose2& true_pose, const core::Vec2& sensor, double half_fov_rad,
     const std::function<bool(int)>& is_knocked) const {
@@ -216,7 +234,8 @@ DeliveredDetections PerceptionRunner::on_lidar(const sensors::LidarScan& scan,
   // the LiDAR alone, scored against the true cones all round
   const auto truth = truth_in_view(true_pose, lidar_xy_, std::numbers::pi, is_knocked);
   const core::ConeObservations raw = detections.observations();
-  lidar_score_->add_frame(raw, truth);
+  const std::vector<OffTrackConeInView> off_track = off_track_in_view(true_pose);
+  lidar_score_->add_frame(raw, truth, off_track);
   // and against the cones that returned enough points to be found at all
   std::vector<int> returns(static_cast<size_t>(track_.next_id()), 0);
   for (int id : scan.labels.cone_id)
@@ -224,7 +243,7 @@ DeliveredDetections PerceptionRunner::on_lidar(const sensors::LidarScan& scan,
   std::vector<TrueConeInView> returned;
   for (const TrueConeInView& c : truth)
     if (returns[static_cast<size_t>(c.id)] >= kMinReturns) returned.push_back(c);
-  lidar_returned_score_->add_frame(raw, returned);
+  lidar_returned_score_->add_frame(raw, returned, off_track);
   // with scenery, the detections whose points lie mostly on a clutter object, by its class
   if (score_clutter_) {
     lidar_detections_ += static_cast<int64_t>(detections.cones.size());
@@ -246,12 +265,23 @@ DeliveredDetections PerceptionRunner::on_lidar(const sensors::LidarScan& scan,
                                  camera_in_lidar);
     frame.stamp = detections.stamp;
   } else {
-    for (const auto& cone : detections.cones) labels.push_back(cluster_label(cone, scan.labels));
+    // a cluster on a spare cone: that cone's label (the nearest spare cone to the detection)
+    for (const auto& cone : detections.cones) {
+      int label = cluster_label(cone, scan.labels);
+      const std::optional<int> majority = majority_label(cone, scan.labels);
+      if (majority && core::clutter_of_label(*majority) == core::ClutterClass::kSpareCone) {
+        double nearest_m = kClutterCutoffM;
+        for (const OffTrackConeInView& o : off_track)
+          if (const double d = (o.position - cone.observation.position).norm(); d <= nearest_m)
+            nearest_m = d, label = o.label;
+      }
+      labels.push_back(label);
+    }
   }
 
   // tracked ids and colour votes, then the score of what SLAM receives
   frame = track(frame, motion);
-  const std::vector<int> matched = delivered_score_->add_frame(frame, truth);
+  const std::vector<int> matched = delivered_score_->add_frame(frame, truth, off_track);
   DeliveredDetections out;
   out.observations = std::move(frame);
   // the point labels are exact for LiDAR clusters; fused frames are labelled by the match
@@ -296,7 +326,8 @@ std::optional<DeliveredDetections> PerceptionRunner::on_stereo(
     return std::any_of(partial.begin(), partial.end(),
                        [&o](const core::Vec2& p) { return (o.position - p).norm() < 1.0; });
   });
-  const std::vector<int> stereo_matches = stereo_score_->add_frame(scored, truth);
+  const std::vector<OffTrackConeInView> off_track = off_track_in_view(true_pose);
+  const std::vector<int> stereo_matches = stereo_score_->add_frame(scored, truth, off_track);
   // with scenery, each false detection within the scorer's range is put down to the clutter
   // object it lies on (within the matching cutoff of the object's footprint), if any
   if (score_clutter_)
@@ -304,7 +335,7 @@ std::optional<DeliveredDetections> PerceptionRunner::on_stereo(
       const core::Vec2 at = scored.cones[i].position;
       if ((at - camera_xy).norm() > kScoreRangeM) continue;
       ++stereo_detections_;
-      if (stereo_matches[i] >= 0) continue;
+      if (stereo_matches[i] != core::ObservationLabels::kFalsePositive) continue;
       ++stereo_false_positives_;
       const core::Vec2 in_track = true_pose.transform(at);
       for (const tracks::SceneryObject& o : scenery_)
@@ -323,7 +354,7 @@ std::optional<DeliveredDetections> PerceptionRunner::on_stereo(
   tracked.stamp = detections.stamp;
   DeliveredDetections out;
   // (what SLAM receives is labelled against every cone in the left image)
-  out.labels.cone_id = delivered_score_->add_frame(tracked, in_left);
+  out.labels.cone_id = delivered_score_->add_frame(tracked, in_left, off_track);
   out.observations = std::move(tracked);
   out.capture_pose = true_pose;
   return out;
@@ -385,7 +416,7 @@ std::optional<DeliveredDetections> PerceptionRunner::on_plugin_frame(
       pair ? in_left_image(*pair, true_pose, is_knocked)
            : truth_in_view(true_pose, plugin_sensor_xy_, plugin_half_fov_rad_, is_knocked);
   DeliveredDetections out;
-  out.labels.cone_id = delivered_score_->add_frame(frame, truth);
+  out.labels.cone_id = delivered_score_->add_frame(frame, truth, off_track_in_view(true_pose));
   out.observations = std::move(frame);
   out.capture_pose = true_pose;
   return out;

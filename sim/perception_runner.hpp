@@ -134,8 +134,9 @@ class PerceptionRunner {
   nlohmann::json metrics() const;
 
   /// The scenery beside the track (world.clutter): the camera's false detections near an
-  /// object are put down to its class.
-  void set_scenery(const std::vector<tracks::SceneryObject>& scenery) { scenery_ = scenery; }
+  /// object are put down to its class; the spare cones standing off the track are cones that
+  /// are not the track's (found, they are no false detection; see OffTrackConeInView).
+  void set_scenery(const std::vector<tracks::SceneryObject>& scenery);
 
   ~PerceptionRunner();
 
@@ -151,6 +152,9 @@ class PerceptionRunner {
   std::vector<TrueConeInView> in_left_image(const core::StereoFrame& frame,
                                             const core::Pose2& true_pose,
                                             const std::function<bool(int)>& is_knocked) const;
+  // the spare cones standing off the track within the scorer's range (and its cut-off), in the
+  // vehicle frame at true_pose
+  std::vector<OffTrackConeInView> off_track_in_view(const core::Pose2& true_pose) const;
   // the tracker's step, with the motion since its previous frame
   core::ConeObservations track(const core::ConeObservations& frame,
                                const slam::frontend::SweepMotion& motion);
@@ -192,6 +196,8 @@ class PerceptionRunner {
   int64_t stereo_false_positives_ = 0;
   std::array<int64_t, core::kClutterClassCount> stereo_clutter_detections_{};
   std::vector<tracks::SceneryObject> scenery_;
+  // the spare cones standing off the track (track frame), k-th labelled off_track_cone(k)
+  std::vector<core::Vec2> off_track_cones_;
 };
 
 }  // namespace conesim::sim

@@ -95,7 +95,7 @@ void SlamScorer::score(const Update& u) {
   true_odometer_.push_back(travelled);
 
   // associations against the labels: a match is right when the landmark's majority cone is
-  // the observation's true cone
+  // the observation's true cone (a track cone, or a spare cone standing off the track)
   const auto& associations = *u.associations;
   const auto& true_ids = *u.true_ids;
   for (size_t i = 0; i < associations.size() && i < true_ids.size(); ++i) {
@@ -112,7 +112,8 @@ void SlamScorer::score(const Update& u) {
       int majority = -3, best = 0;
       for (const auto& [id, n] : votes)
         if (n > best) best = n, majority = id;
-      if (majority == true_id && true_id >= 0) {
+      if (majority == true_id &&
+          (true_id >= 0 || core::ObservationLabels::is_off_track_cone(true_id))) {
         ++da_correct_;
       } else {
         ++da_wrong_;

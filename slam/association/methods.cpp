@@ -6,6 +6,8 @@
 #include <cmath>
 #include <limits>
 
+#include "core/measurements.hpp"
+
 namespace conesim::slam {
 
 namespace {
@@ -220,10 +222,10 @@ std::vector<int> associate(const AssociationParams& params, const AssociationPro
       return pairing_of;
     }
     case AssociationMethod::kIdeal: {
-      // the landmark of the observation's true cone, when there is one in reach
+      // the landmark of the observation's true cone (or off-track cone), when one is in reach
       for (int i = 0; i < n; ++i) {
         const int label = p.observation_label(i);
-        if (label < 0) continue;
+        if (label < 0 && !core::ObservationLabels::is_off_track_cone(label)) continue;
         for (int j = 0; j < p.candidates(); ++j) {
           if (taken[j] || p.candidate_label(j) != label) continue;
           pairing_of[i] = j;

@@ -692,6 +692,7 @@ std::string LidarDetectorConfig::validate() const {
     e << "max_cone_height_m: expected > min_cone_height_m, got " << max_cone_height_m;
   positive("big_cone_min_height_m", big_cone_min_height_m);
   positive("ring_spacing_deg", ring_spacing_deg);
+  non_negative("ring_above_margin_m", ring_above_margin_m);
   for (size_t i = 1; e.tellp() == 0 && i < ring_elevations_deg.size(); ++i)
     if (!(ring_elevations_deg[i] > ring_elevations_deg[i - 1]))
       e << "ring_elevations_deg: expected strictly increasing elevations, ring 0 lowest";
@@ -925,6 +926,11 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud, const S
     else if (!rings.empty())
       rise = std::numeric_limits<double>::infinity();  // the top ring: nothing above it
     const double next_ring_height = top + top_range * rise;
+    // the ring above would have met any cone standing here, and left nothing: not a cone
+    if (next_ring_height < small.height_m - c.ring_above_margin_m) {
+      ++out.rejected_clusters;
+      continue;
+    }
     const bool small_by_rings = !big_by_height && next_ring_height < big.height_m - 0.02;
     bool may_be_small = !big_by_height;
     bool may_be_big = !small_by_rings;

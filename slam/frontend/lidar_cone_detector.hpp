@@ -68,6 +68,11 @@ struct LidarDetectorConfig {
   /// the ring above the top one is looked up here instead of using ring_spacing_deg (a
   /// VLP-32C's rings are 0.33 degrees apart near the horizon, 7 degrees apart far above it).
   std::vector<double> ring_elevations_deg;
+  /// A cluster is no cone when the ring above its top one, at its range, would have met a small
+  /// cone at least this far below the cone's top and left no point: a low step met by one ring
+  /// (the grass edge's 6 cm, a kerb) whose ring above passes over it. Covers the error of the
+  /// heights (the ground fit, the car's pitch between rings) and the cone's narrow tip, metres.
+  double ring_above_margin_m = 0.05;
   /// Azimuth step between columns, degrees (0.2 for a VLP-16 at 10 Hz): when the height leaves
   /// the size open, the width of each ring's points across the line of sight, 2 r(h) less
   /// about one step, tells a small cone from a big one.

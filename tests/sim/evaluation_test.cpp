@@ -279,6 +279,36 @@ TEST(PerceptionScorer, CountsOneFrameByRangeBand) {
   EXPECT_TRUE(bands[5]["position_rmse_m"].is_null());
 }
 
+// A spare cone standing off the track is a cone: a detection on it is neither true nor false
+// (KITTI's DontCare), carries that cone's label, and never takes a track cone's detection.
+TEST(PerceptionScorer, ADetectionOfAConeOffTheTrackIsNeitherTrueNorFalse) {
+  PerceptionScorer scorer(Vec2::Zero());
+  const std::vector<TrueConeInView> truth = {{1, ConeClass::kBlue, {5.0, 0.0}}};
+  const int spare = core::ObservationLabels::off_track_cone(3);
+  const std::vector<OffTrackConeInView> off_track = {{spare, {5.0, 0.9}}, {spare - 1, {9.0, 4.0}}};
+  const auto ids = scorer.add_frame(detections({{{5.0, 0.2}, ConeClass::kBlue},     // the track's
+                                                {{5.0, 0.8}, ConeClass::kBlue},     // the spare's
+                                                {{9.0, 4.6}, ConeClass::kYellow},   // the other's
+                                                {{12.0, 0.0}, ConeClass::kBlue}}),  // nothing's
+                                    truth, off_track);
+  EXPECT_EQ(ids, (std::vector<int>{1, spare, spare - 1, -1}));
+  EXPECT_TRUE(core::ObservationLabels::is_off_track_cone(ids[1]));
+  EXPECT_FALSE(core::ObservationLabels::is_off_track_cone(core::ObservationLabels::kFalsePositive));
+  const nlohmann::json m = scorer.metrics();
+  EXPECT_EQ(m["detections"], 2);
+  EXPECT_EQ(m["matched"], 1);
+  EXPECT_EQ(m["off_track_cone_detections"], 2);
+  EXPECT_DOUBLE_EQ(value(m["precision"]), 0.5);
+  // without the off-track cones the same frame has three false detections
+  PerceptionScorer plain(Vec2::Zero());
+  plain.add_frame(detections({{{5.0, 0.2}, ConeClass::kBlue},
+                              {{5.0, 0.8}, ConeClass::kBlue},
+                              {{9.0, 4.6}, ConeClass::kYellow},
+                              {{12.0, 0.0}, ConeClass::kBlue}}),
+                  truth);
+  EXPECT_DOUBLE_EQ(value(plain.metrics()["precision"]), 0.25);
+}
+
 TEST(PerceptionScorer, MatchesOneToOneAtTheLeastTotalDistance) {
   // the first detection is closest to P, but taking P would leave the second with nothing
   // within 1 m: both are detections of a cone

@@ -83,6 +83,23 @@ TEST(SlamScorer, AWrongAssociationIsCountedAtTheMomentItHappens) {
   EXPECT_DOUBLE_EQ(m["da_correct_fraction"].get<double>(), 0.5);
 }
 
+// A spare cone standing off the track is a real cone: observed again and again as one landmark
+// it is associated right; matched to a track cone's landmark (or another's) it is wrong.
+TEST(SlamScorer, AConeOffTheTrackKeptAsOneLandmarkIsAssociatedRight) {
+  const tracks::Track track = straight();
+  SlamScorer scorer(track, wide_view());
+  Feeder feed{scorer};
+  const int spare = core::ObservationLabels::off_track_cone(0);
+  feed.update(0.0, {0, spare}, {{7, Kind::kNew}, {8, Kind::kNew}}, true_map(track));
+  feed.update(0.5, {0, spare}, {{7, Kind::kMatched}, {8, Kind::kMatched}}, true_map(track));
+  EXPECT_EQ(scorer.da_correct(), 2);
+  EXPECT_EQ(scorer.da_wrong(), 0);
+  feed.update(1.0, {spare, spare - 1}, {{7, Kind::kMatched}, {8, Kind::kMatched}},
+              true_map(track));
+  EXPECT_EQ(scorer.da_correct(), 2);
+  EXPECT_EQ(scorer.da_wrong(), 2);
+}
+
 TEST(SlamScorer, ADuplicateLandmarkIsOneMatchAndOneSpurious) {
   const tracks::Track track = straight();
   SlamScorer scorer(track, wide_view());
