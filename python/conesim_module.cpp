@@ -266,6 +266,9 @@ py::dict camera_dict(const CameraFrame& f) {
   intrinsics["fy"] = k.fy;
   intrinsics["cx"] = k.cx;
   intrinsics["cy"] = k.cy;
+  intrinsics["distortion"] =
+      py::make_tuple(k.distortion[0], k.distortion[1], k.distortion[2], k.distortion[3],
+                     k.distortion[4]);
   d["intrinsics"] = intrinsics;
   py::array_t<double> matrix(std::vector<py::ssize_t>{3, 3});
   const double values[9] = {k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0};

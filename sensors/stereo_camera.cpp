@@ -58,6 +58,30 @@ std::string StereoCameraConfig::validate() const {
     return "far_m: must exceed 10 x near_m and be at most 2000";
   if (!(light_ambient >= 0.0 && light_ambient <= 1.0)) return "light_ambient: must be 0-1";
   if (!(light_diffuse >= 0.0 && light_diffuse <= 1.0)) return "light_diffuse: must be 0-1";
+  // the lens: finite terms of a size real lenses have, and a radial map that keeps growing out
+  // to the image's corner (else two rays would land on one pixel and the model has no inverse)
+  const char* names[5] = {"k1", "k2", "p1", "p2", "k3"};
+  for (size_t i = 0; i < distortion.size(); ++i) {
+    const double limit = i == 2 || i == 3 ? 0.05 : 2.0;
+    if (!(std::abs(distortion[i]) <= limit))
+      return std::string("distortion: ") + names[i] + " must be within +-" +
+             (limit < 1.0 ? "0.05" : "2") + ", got " + std::to_string(distortion[i]);
+  }
+  const double tan_half_x = std::tan(0.5 * horizontal_fov_deg * kDegToRad);
+  const double corner = tan_half_x * std::hypot(1.0, static_cast<double>(height_px) / width_px);
+  const auto& [k1, k2, p1, p2, k3] = distortion;
+  double last = 0.0;
+  for (int i = 1;; ++i) {
+    const double r = corner * i / 1000.0, r2 = r * r;
+    const double g = r * (1.0 + r2 * (k1 + r2 * (k2 + r2 * k3)));
+    if (!(g > last))
+      return "distortion: the radial terms fold the image over at " + std::to_string(r) +
+             " from the axis (tangent of the angle), inside the image's corner at " +
+             std::to_string(corner) + ": not a lens";
+    if (g >= 1.02 * corner) break;
+    if (i >= 10000) return "distortion: the radial terms never reach the image's corner";
+    last = g;
+  }
   return response.validate();
 }
 
@@ -72,6 +96,7 @@ core::CameraIntrinsics stereo_intrinsics(const StereoCameraConfig& c) {
   k.fx = k.fy;
   k.cx = 0.5 * c.width_px - 0.5;
   k.cy = 0.5 * c.height_px - 0.5;
+  k.distortion = c.distortion;
   return k;
 }
 
@@ -101,14 +126,32 @@ StereoCamera::StereoCamera(const StereoCameraConfig& config, const mjModel* mode
     throw std::invalid_argument("stereo camera: height_px: exceeds the model's offscreen height " +
                                 std::to_string(model->vis.global.offheight));
 
-  // calibration, fixed for the camera's life
+  // calibration, fixed for the camera's life; with distortion GL draws a larger pinhole canvas
   intrinsics_ = stereo_intrinsics(config);
   left_in_vehicle_ = stereo_camera_in_vehicle(config, true);
   right_in_vehicle_ = stereo_camera_in_vehicle(config, false);
   frustum_half_height_ = frustum_half_height(config);
+  canvas_ = intrinsics_;
+  canvas_.distortion = {};
+  if (intrinsics_.distorted()) {
+    plan_warp();
+    if (canvas_.width_px > model->vis.global.offwidth ||
+        canvas_.height_px > model->vis.global.offheight)
+      throw std::invalid_argument(
+          "stereo camera: distortion: the pinhole view it is drawn from needs " +
+          std::to_string(canvas_.width_px) + " x " + std::to_string(canvas_.height_px) +
+          " pixels, beyond the model's offscreen buffer of " +
+          std::to_string(model->vis.global.offwidth) + " x " +
+          std::to_string(model->vis.global.offheight));
+    // the same focal length over the larger canvas (MuJoCo matches the width to the aspect)
+    frustum_half_height_ = static_cast<float>(frustum_half_height_ *
+                                              static_cast<double>(canvas_.height_px) /
+                                              config.height_px);
+  }
+  const int cw = canvas_.width_px, ch = canvas_.height_px;
 
   // GL: one OSMesa context per camera, MuJoCo's render context drawing off-screen
-  gl_ = std::make_unique<OsMesaContext>(config.width_px, config.height_px);
+  gl_ = std::make_unique<OsMesaContext>(cw, ch);
   mjr_defaultContext(&context_);
   mjr_makeContext(model, &context_, mjFONTSCALE_50);
   mjr_setBuffer(mjFB_OFFSCREEN, &context_);
@@ -136,18 +179,74 @@ StereoCamera::StereoCamera(const StereoCameraConfig& config, const mjModel* mode
 
   // scratch state, so that the caller's mjData stays untouched
   scratch_ = mj_makeData(model);
-  rgba_scratch_.resize(4 * static_cast<size_t>(config.width_px) * config.height_px);
-  depth_scratch_.resize(static_cast<size_t>(config.width_px) * config.height_px);
+  rgba_scratch_.resize(4 * static_cast<size_t>(cw) * ch);
+  depth_scratch_.resize(static_cast<size_t>(cw) * ch);
 
   // ray lengths for painting the sky by elevation
   inverse_ray_length_.resize(depth_scratch_.size());
-  for (int r = 0; r < config.height_px; ++r)
-    for (int c = 0; c < config.width_px; ++c) {
-      const double x = (c - intrinsics_.cx) / intrinsics_.fx;
-      const double y = (r - intrinsics_.cy) / intrinsics_.fy;
-      inverse_ray_length_[static_cast<size_t>(r) * config.width_px + c] =
+  for (int r = 0; r < ch; ++r)
+    for (int c = 0; c < cw; ++c) {
+      const double x = (c - canvas_.cx) / canvas_.fx;
+      const double y = (r - canvas_.cy) / canvas_.fy;
+      inverse_ray_length_[static_cast<size_t>(r) * cw + c] =
           static_cast<float>(1.0 / std::sqrt(1.0 + x * x + y * y));
     }
+}
+
+void StereoCamera::plan_warp() {
+  const core::CameraIntrinsics& k = intrinsics_;
+  const int w = k.width_px, h = k.height_px;
+  const auto& [k1, k2, p1, p2, k3] = k.distortion;
+  // the normalised pinhole point each pixel shows: Newton on the lens model from the pixel's
+  // own normalised position (validate() keeps the radial map growing, so it converges)
+  std::vector<Eigen::Vector2d> source(static_cast<size_t>(w) * h);
+  double reach_x = 0.0, reach_y = 0.0;  // farthest source from the principal point, pixels
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c) {
+      const Eigen::Vector2d target((c - k.cx) / k.fx, (r - k.cy) / k.fy);
+      Eigen::Vector2d p = target;
+      for (int it = 0; it < 50; ++it) {
+        const double x = p.x(), y = p.y(), r2 = x * x + y * y;
+        const double radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+        const double slope = k1 + r2 * (2.0 * k2 + 3.0 * r2 * k3);  // d radial / d r2
+        const Eigen::Vector2d drawn(x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+                                    y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y);
+        Eigen::Matrix2d j;
+        j << radial + 2.0 * x * x * slope + 2.0 * p1 * y + 6.0 * p2 * x,
+            2.0 * x * y * slope + 2.0 * p1 * x + 2.0 * p2 * y,
+            2.0 * x * y * slope + 2.0 * p1 * x + 2.0 * p2 * y,
+            radial + 2.0 * y * y * slope + 6.0 * p1 * y + 2.0 * p2 * x;
+        const Eigen::Vector2d step = j.partialPivLu().solve(drawn - target);
+        p -= step;
+        if (step.norm() < 1e-13) break;
+      }
+      const Eigen::Vector2d pixel(k.fx * p.x() + k.cx, k.fy * p.y() + k.cy);
+      if (!pixel.allFinite())
+        throw std::invalid_argument("stereo camera: distortion: no pinhole ray for pixel (" +
+                                    std::to_string(c) + ", " + std::to_string(r) + ")");
+      source[static_cast<size_t>(r) * w + c] = pixel;
+      reach_x = std::max(reach_x, std::abs(pixel.x() - k.cx));
+      reach_y = std::max(reach_y, std::abs(pixel.y() - k.cy));
+    }
+  // the canvas: the image grown by the same margin either side (the principal point stays in
+  // its centre, on the same pixel grid), one pixel more than the farthest source for blending
+  const int margin_x = std::max(0, static_cast<int>(std::ceil(reach_x - k.cx)) + 1);
+  const int margin_y = std::max(0, static_cast<int>(std::ceil(reach_y - k.cy)) + 1);
+  canvas_.width_px = w + 2 * margin_x;
+  canvas_.height_px = h + 2 * margin_y;
+  canvas_.cx = k.cx + margin_x;
+  canvas_.cy = k.cy + margin_y;
+  warp_.resize(source.size());
+  auto nearest = std::make_shared<std::vector<Eigen::Vector2d>>(source.size());
+  for (size_t i = 0; i < source.size(); ++i) {
+    const double x = source[i].x() + margin_x, y = source[i].y() + margin_y;
+    const double x0 = std::floor(x), y0 = std::floor(y);
+    warp_[i] = {static_cast<int32_t>(y0) * canvas_.width_px + static_cast<int32_t>(x0),
+                static_cast<float>(x - x0), static_cast<float>(y - y0)};
+    const int32_t at = warp_[i].nearest(canvas_.width_px);
+    (*nearest)[i] = {at % canvas_.width_px - margin_x, at / canvas_.width_px - margin_y};
+  }
+  nearest_pinhole_ = nearest;
 }
 
 StereoCamera::~StereoCamera() {
@@ -197,7 +296,7 @@ void StereoCamera::render(const mjData* data, const core::Pose3& vehicle_in_trac
 void StereoCamera::render_segmentation(SegmentationImage& out) {
   if (!rendered_) throw std::logic_error("stereo camera: render_segmentation before render");
   gl_->make_current();
-  const int w = config_.width_px, h = config_.height_px;
+  const int w = canvas_.width_px, h = canvas_.height_px;
 
   // what each scene geom shows, and its segmentation id: MuJoCo paints a geom in the colour
   // segid + 1 (red the low byte) with lighting, textures and blending off
@@ -231,17 +330,25 @@ void StereoCamera::render_segmentation(SegmentationImage& out) {
   for (int i = 0; i < scene_.ngeom; ++i) scene_.geoms[i].segid = saved_segid[static_cast<size_t>(i)];
 
   // decode, flipping rows to top to bottom; colour 0 (the cleared background) is the sky
-  out.width_px = w;
-  out.height_px = h;
-  out.object.resize(static_cast<size_t>(w) * h);
-  for (int r = 0; r < h; ++r) {
-    const uint8_t* src = rgba_scratch_.data() + 4 * static_cast<size_t>(h - 1 - r) * w;
-    int32_t* dst = out.object.data() + static_cast<size_t>(r) * w;
-    for (int c = 0; c < w; ++c, src += 4) {
-      const int id = (src[0] | (src[1] << 8) | (src[2] << 16)) - 1;
-      dst[c] = id >= 0 && id < scene_.ngeom ? shows[static_cast<size_t>(id)]
-                                            : SegmentationImage::kNothing;
-    }
+  auto decode = [&](int r, int c) {
+    const uint8_t* src = rgba_scratch_.data() + 4 * (static_cast<size_t>(h - 1 - r) * w + c);
+    const int id = (src[0] | (src[1] << 8) | (src[2] << 16)) - 1;
+    return id >= 0 && id < scene_.ngeom ? shows[static_cast<size_t>(id)]
+                                        : SegmentationImage::kNothing;
+  };
+  out.width_px = config_.width_px;
+  out.height_px = config_.height_px;
+  out.object.resize(static_cast<size_t>(out.width_px) * out.height_px);
+  out.pinhole_point = nearest_pinhole_;
+  if (warp_.empty()) {
+    for (int r = 0; r < h; ++r)
+      for (int c = 0; c < w; ++c) out.object[static_cast<size_t>(r) * w + c] = decode(r, c);
+    return;
+  }
+  // through the lens: the nearest canvas pixel's object (ids are not blended)
+  for (size_t i = 0; i < warp_.size(); ++i) {
+    const int32_t at = warp_[i].nearest(w);
+    out.object[i] = decode(at / w, at % w);
   }
 }
 
@@ -252,6 +359,11 @@ ViewVolume StereoCamera::rig_view(const core::Pose3& left_in_track) const {
   v.axes = left_in_track.orientation.toRotationMatrix();
   v.tan_half_x = std::tan(0.5 * config_.horizontal_fov_deg * kDegToRad);
   v.tan_half_y = v.tan_half_x * config_.height_px / config_.width_px;
+  if (!warp_.empty()) {
+    // the canvas the lens draws from, a little wider than the pinhole image
+    v.tan_half_x = (0.5 * canvas_.width_px) / canvas_.fx;
+    v.tan_half_y = (0.5 * canvas_.height_px) / canvas_.fy;
+  }
   const double setback_m = 0.5 * config_.baseline_m / v.tan_half_x;
   v.eye =
       left_in_track.position + 0.5 * config_.baseline_m * v.axes.col(0) - setback_m * v.axes.col(2);
@@ -306,9 +418,14 @@ void StereoCamera::aim(const core::Pose3& eye_in_track) {
   }
 }
 
-void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& image,
-                              std::vector<float>* depth_m) {
-  const int w = config_.width_px, h = config_.height_px;
+void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& out_image,
+                              std::vector<float>* out_depth_m) {
+  // GL draws the pinhole canvas: the image itself, or with distortion a larger one that the
+  // image then samples through the lens model
+  const bool warp = !warp_.empty();
+  core::RgbImage& image = warp ? canvas_rgb_ : out_image;
+  std::vector<float>* depth_m = warp && out_depth_m ? &canvas_depth_ : out_depth_m;
+  const int w = canvas_.width_px, h = canvas_.height_px;
   aim(eye_in_track);
 
   // draw and read back RGBA from the offscreen buffer (rows bottom-up; alpha 0 where nothing
@@ -319,7 +436,7 @@ void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& i
 
   // flip to rows top to bottom and paint the sky where nothing was drawn: a gradient from the
   // horizon colour to the zenith colour with the elevation of the pixel's ray
-  const core::CameraIntrinsics& k = intrinsics_;
+  const core::CameraIntrinsics& k = canvas_;
   const Eigen::Matrix3d r_world = eye_in_track.orientation.toRotationMatrix();
   image.width_px = w;
   image.height_px = h;
@@ -349,6 +466,24 @@ void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& i
       for (int i = 0; i < 3; ++i) dst[i] = static_cast<uint8_t>(sky[i] + t * sky_slope[i]);
     }
   }
+  if (warp) {
+    // each image pixel blends the four canvas pixels round its ray (bilinear)
+    out_image.width_px = config_.width_px;
+    out_image.height_px = config_.height_px;
+    out_image.rgb.resize(3 * warp_.size());
+    const uint8_t* src = canvas_rgb_.rgb.data();
+    uint8_t* dst = out_image.rgb.data();
+    const size_t row = 3 * static_cast<size_t>(w);
+    for (const WarpSample& s : warp_) {
+      const uint8_t* a = src + 3 * static_cast<size_t>(s.index);
+      const float wx = s.wx, wy = s.wy;
+      for (int i = 0; i < 3; ++i, ++a) {
+        const float top = a[0] + wx * (static_cast<float>(a[3]) - a[0]);
+        const float bottom = a[row] + wx * (static_cast<float>(a[row + 3]) - a[row]);
+        *dst++ = static_cast<uint8_t>(top + wy * (bottom - top) + 0.5f);
+      }
+    }
+  }
   if (!depth_m) return;
 
   // depth buffer to metric depth along the optical axis: z_b = (1/n - 1/d) / (1/n - 1/f);
@@ -362,6 +497,12 @@ void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& i
     for (int c = 0; c < w; ++c)
       dst[c] = src[c] >= 1.0f ? std::numeric_limits<float>::infinity()
                               : static_cast<float>(n * f / (f - src[c] * (f - n)));
+  }
+  if (warp) {
+    // depth is not blended across edges: the nearest canvas pixel's
+    out_depth_m->resize(warp_.size());
+    for (size_t i = 0; i < warp_.size(); ++i)
+      (*out_depth_m)[i] = canvas_depth_[static_cast<size_t>(warp_[i].nearest(w))];
   }
 }
 

@@ -6,6 +6,7 @@
 
 #include <mujoco/mujoco.h>
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -19,6 +20,12 @@
 #include "tracks/track.hpp"
 
 namespace conesim::sensors {
+
+/// The lens a scenario's camera has with `sensors.realism: on` (k1, k2, p1, p2, k3): a
+/// low-distortion machine-vision lens of about 70 degrees as FS teams calibrate them (barrel,
+/// 7 % at the image's corner; tangential terms of a slightly tilted sensor).
+inline constexpr std::array<double, 5> kTypicalLensDistortion = {-0.12, 0.03, 0.0005, -0.0003,
+                                                                 0.0};
 
 /// Configuration of the stereo rig. Defaults: a main-hoop pair looking ahead, slightly down.
 struct StereoCameraConfig {
@@ -47,6 +54,11 @@ struct StereoCameraConfig {
   double light_diffuse = 0.55;
   /// What the sensor does to the rendered light: exposure, shot and read noise, gamma.
   ImageResponse response;
+  /// Lens distortion in OpenCV's model (k1, k2, p1, p2, k3; core::CameraIntrinsics): the images
+  /// are drawn through it and the intrinsics published with each frame carry it, so
+  /// cv::undistortPoints or cv::initUndistortRectifyMap with them gives the pinhole view back.
+  /// All zero: a pinhole camera.
+  std::array<double, 5> distortion{};
   /// Seed of the images' noise (a run gives its scenario's seed).
   uint64_t noise_seed = 0;
 
@@ -54,8 +66,8 @@ struct StereoCameraConfig {
   std::string validate() const;
 };
 
-/// Pinhole intrinsics of a camera with this configuration (square pixels, principal point in
-/// the image centre; pixel centres at integer coordinates, as in OpenCV).
+/// Intrinsics of a camera with this configuration (square pixels, principal point in the image
+/// centre; pixel centres at integer coordinates, as in OpenCV), with its lens distortion.
 core::CameraIntrinsics stereo_intrinsics(const StereoCameraConfig& config);
 
 /// Left (left = true) or right camera pose in the vehicle frame, optical axes (x right, y down,
@@ -77,6 +89,11 @@ struct SegmentationImage {
   int height_px = 0;
   /// Per pixel, rows top to bottom: a cone's id (>= 0) or one of the codes above.
   std::vector<int32_t> object;
+  /// With lens distortion: per pixel, the point of the pinhole view (pixels, the same fx, fy,
+  /// cx, cy) whose object it shows: GL decides at the centres of the pinhole canvas's pixels,
+  /// and each image pixel takes the nearest one. Empty (null) for a pinhole camera, where a
+  /// pixel shows what lies at its own centre.
+  std::shared_ptr<const std::vector<Eigen::Vector2d>> pinhole_point;
 
   int32_t at(int x, int y) const { return object[static_cast<size_t>(y) * width_px + x]; }
 };
@@ -128,9 +145,32 @@ class StereoCamera {
                   std::vector<float>* depth_m);
   // the rig's view volume, for skipping cones outside both images
   ViewVolume rig_view(const core::Pose3& left_in_track) const;
+  // with distortion: where each image pixel takes its value from on the pinhole canvas
+  void plan_warp();
+
+  // one image pixel's source on the canvas: the top-left of its four neighbours (row-major,
+  // rows top to bottom) and the weights of the right and lower ones
+  struct WarpSample {
+    int32_t index = 0;
+    float wx = 0.f;
+    float wy = 0.f;
+    // the nearest of the four (depth and segmentation are not blended across edges)
+    int32_t nearest(int canvas_width) const {
+      return index + (wx >= 0.5f ? 1 : 0) + (wy >= 0.5f ? canvas_width : 0);
+    }
+  };
 
   StereoCameraConfig config_;
   core::CameraIntrinsics intrinsics_;
+  // what GL draws: the pinhole view, larger than the image when the lens distorts, so that
+  // every image pixel's ray is on it (the image itself when it does not)
+  core::CameraIntrinsics canvas_;
+  std::vector<WarpSample> warp_;
+  // for each image pixel, the centre of the canvas pixel warp_ takes its nearest value from, in
+  // the pinhole image's pixel coordinates (SegmentationImage::pinhole_point)
+  std::shared_ptr<const std::vector<Eigen::Vector2d>> nearest_pinhole_;
+  core::RgbImage canvas_rgb_;
+  std::vector<float> canvas_depth_;
   core::Pose3 left_in_vehicle_;
   core::Pose3 right_in_vehicle_;
   float frustum_half_height_ = 0.f;

@@ -383,11 +383,14 @@ std::vector<ConeImageLabel> label_cones(const tracks::Track& track,
     c.seen_x0 = s.x0, c.seen_y0 = s.y0, c.seen_x1 = s.x1 + 1.0, c.seen_y1 = s.y1 + 1.0;
 
     // the mesh where the camera draws it: on the ground under the cone's centre, plate edges
-    // along the track's axes, through the pinhole (pixel centres at integers)
+    // along the track's axes, through the camera's lens model (pixel centres at integers)
     const vehicle_models::TriangleMesh& mesh = cone_meshes()[static_cast<size_t>(cone.cls)];
     const Eigen::Vector3d base(cone.position.x(), cone.position.y(),
                                ground.height(cone.position.x(), cone.position.y()));
     std::vector<Eigen::Vector2d> uv(static_cast<size_t>(mesh.vertex_count()));
+    // with a lens: the same vertices in the pinhole view, where the segmentation was decided
+    const std::vector<Eigen::Vector2d>* pinhole_point = seg.pinhole_point.get();
+    std::vector<Eigen::Vector2d> uv_pinhole(pinhole_point ? uv.size() : 0);
     double u0 = 1e18, v0 = 1e18, u1 = -1e18, v1 = -1e18;
     for (int i = 0; i < mesh.vertex_count() && !c.too_near; ++i) {
       const Eigen::Vector3d p =
@@ -397,7 +400,9 @@ std::vector<ConeImageLabel> label_cones(const tracks::Track& track,
         c.too_near = true;
         break;
       }
-      uv[static_cast<size_t>(i)] = {k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy};
+      uv[static_cast<size_t>(i)] = k.pixel_of({p.x() / p.z(), p.y() / p.z()});  // the lens too
+      if (pinhole_point)
+        uv_pinhole[static_cast<size_t>(i)] = {k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy};
       u0 = std::min(u0, uv[i].x()), u1 = std::max(u1, uv[i].x());
       v0 = std::min(v0, uv[i].y()), v1 = std::max(v1, uv[i].y());
     }
@@ -406,9 +411,14 @@ std::vector<ConeImageLabel> label_cones(const tracks::Track& track,
       continue;
     }
 
-    // rasterise: a pixel belongs to the silhouette when its centre lies in a triangle
-    const int bx0 = static_cast<int>(std::ceil(u0 - 0.5)), bx1 = static_cast<int>(std::floor(u1 + 0.5));
-    const int by0 = static_cast<int>(std::ceil(v0 - 0.5)), by1 = static_cast<int>(std::floor(v1 + 0.5));
+    // rasterise: a pixel belongs to the silhouette when its centre lies in a triangle; through
+    // a lens, when the pinhole point it shows does (the rule the segmentation was drawn by), so
+    // a pixel may join from one further out (the triangles' edges bend a little in the image)
+    const int grow = pinhole_point ? 1 : 0;
+    const int bx0 = static_cast<int>(std::ceil(u0 - 0.5)) - grow,
+              bx1 = static_cast<int>(std::floor(u1 + 0.5)) + grow;
+    const int by0 = static_cast<int>(std::ceil(v0 - 0.5)) - grow,
+              by1 = static_cast<int>(std::floor(v1 + 0.5)) + grow;
     const int bw = std::max(0, bx1 - bx0 + 1), bh = std::max(0, by1 - by0 + 1);
     std::vector<uint8_t> cover(static_cast<size_t>(bw) * bh, 0);
     for (size_t f = 0; f + 2 < mesh.faces.size(); f += 3) {
@@ -417,12 +427,29 @@ std::vector<ConeImageLabel> label_cones(const tracks::Track& track,
       const Eigen::Vector2d& d = uv[static_cast<size_t>(mesh.faces[f + 2])];
       const double area = (b - a).x() * (d - a).y() - (b - a).y() * (d - a).x();
       if (std::abs(area) < 1e-12) continue;
-      const int tx0 = std::max(bx0, static_cast<int>(std::ceil(std::min({a.x(), b.x(), d.x()}))));
-      const int tx1 = std::min(bx1, static_cast<int>(std::floor(std::max({a.x(), b.x(), d.x()}))));
-      const int ty0 = std::max(by0, static_cast<int>(std::ceil(std::min({a.y(), b.y(), d.y()}))));
-      const int ty1 = std::min(by1, static_cast<int>(std::floor(std::max({a.y(), b.y(), d.y()}))));
+      const int tx0 = std::max(bx0, static_cast<int>(std::ceil(std::min({a.x(), b.x(), d.x()}))) - grow);
+      const int tx1 = std::min(bx1, static_cast<int>(std::floor(std::max({a.x(), b.x(), d.x()}))) + grow);
+      const int ty0 = std::max(by0, static_cast<int>(std::ceil(std::min({a.y(), b.y(), d.y()}))) - grow);
+      const int ty1 = std::min(by1, static_cast<int>(std::floor(std::max({a.y(), b.y(), d.y()}))) + grow);
+      // the triangle in the view its test points are in
+      const bool in_pinhole = pinhole_point != nullptr;
+      const Eigen::Vector2d& pa = in_pinhole ? uv_pinhole[static_cast<size_t>(mesh.faces[f])] : a;
+      const Eigen::Vector2d& pb = in_pinhole ? uv_pinhole[static_cast<size_t>(mesh.faces[f + 1])] : b;
+      const Eigen::Vector2d& pd = in_pinhole ? uv_pinhole[static_cast<size_t>(mesh.faces[f + 2])] : d;
+      const double pinhole_area =
+          (pb - pa).x() * (pd - pa).y() - (pb - pa).y() * (pd - pa).x();
       for (int y = ty0; y <= ty1; ++y)
         for (int x = tx0; x <= tx1; ++x) {
+          if (in_pinhole && x >= 0 && y >= 0 && x < w && y < h) {
+            // inside the image: the pinhole point the segmentation decided this pixel at
+            const Eigen::Vector2d& q = (*pinhole_point)[static_cast<size_t>(y) * w + x];
+            auto side = [&](const Eigen::Vector2d& p0, const Eigen::Vector2d& p1) {
+              return ((p1 - p0).x() * (q - p0).y() - (p1 - p0).y() * (q - p0).x()) * pinhole_area;
+            };
+            if (side(pa, pb) >= 0 && side(pb, pd) >= 0 && side(pd, pa) >= 0)
+              cover[static_cast<size_t>(y - by0) * bw + (x - bx0)] = 1;
+            continue;
+          }
           const Eigen::Vector2d q(x, y);
           auto edge = [&](const Eigen::Vector2d& p0, const Eigen::Vector2d& p1) {
             return ((p1 - p0).x() * (q - p0).y() - (p1 - p0).y() * (q - p0).x()) * area;
@@ -589,7 +616,7 @@ DatasetSummary write_dataset(const DatasetOptions& o, std::ostream& log) {
                      {"fy", k.fy},             {"cx", k.cx},               {"cy", k.cy},
                      {"baseline_m", s.sensors.camera.baseline_m},
                      {"left_in_vehicle", pose_json(sensors::stereo_camera_in_vehicle(s.sensors.camera, true))},
-                     {"distortion", {0.0, 0.0, 0.0, 0.0, 0.0}}};
+                     {"distortion", k.distortion}};
       lidar_json = {{"model", s.sensors.lidar_model}, {"mount", s.sensors.lidar_mount}};
     }
     log << "run " << run << " (seed " << seed << ", " << track.name << "): " << writer.written()

@@ -949,6 +949,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   // sensors switched off explicitly, which a raw-data perception contradicts
   bool lidar_disabled = false;
   bool camera_noise_given = false;
+  bool lens_given = false;
   bool camera_disabled = false;
   // the stack chosen under autonomy: (over the top-level perception: and slam:)
   AutonomyChoice autonomy;
@@ -1189,7 +1190,17 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                          cam.response.full_well_e = read_number(x, c, "full_well_e");
                          camera_noise_given = true;
                        }},
-                      number("read_noise_e", cam.response.read_noise_e, c)});
+                      number("read_noise_e", cam.response.read_noise_e, c),
+                      {"distortion",
+                       [&](const YAML::Node& x) {
+                         if (!x.IsSequence() || x.size() != 5)
+                           c.fail(x, "distortion",
+                                  "expected a list of five numbers [k1, k2, p1, p2, k3] (OpenCV's "
+                                  "lens model)");
+                         for (size_t i = 0; i < 5; ++i)
+                           cam.distortion[i] = read_number(x[i], c, "distortion");
+                         lens_given = true;
+                       }}});
                }}});
        }},
       {"faults", [&](const YAML::Node& n) { s.faults = read_faults(n, context); }},
@@ -1222,8 +1233,12 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
       s.track.generate_seed = s.seed;
   }
 
-  // without the sensors' realism the images carry no noise (unless the noise is asked for)
+  // without the sensors' realism the images carry no noise (unless the noise is asked for);
+  // with it the lens distorts as a common machine-vision lens does (unless another is given)
   if (!s.sensors.realism && !camera_noise_given) s.sensors.camera.response.full_well_e = 0.0;
+  if (!lens_given)
+    s.sensors.camera.distortion = s.sensors.realism ? sensors::kTypicalLensDistortion
+                                                    : std::array<double, 5>{};
   if (s.randomise) randomise_look(s);
 
   // check the values as a whole

@@ -158,9 +158,10 @@ std::vector<TrueBox> true_boxes(const core::StereoFrame& frame, const core::Pose
         behind = true;
         break;
       }
-      const double u = k.fx * q.x() / q.z() + k.cx, v = k.fy * q.y() / q.z() + k.cy;
-      b.x0 = std::min(b.x0, u), b.x1 = std::max(b.x1, u);
-      b.y0 = std::min(b.y0, v), b.y1 = std::max(b.y1, v);
+      // through the lens, as the image is drawn
+      const Eigen::Vector2d uv = k.pixel_of({q.x() / q.z(), q.y() / q.z()});
+      b.x0 = std::min(b.x0, uv.x()), b.x1 = std::max(b.x1, uv.x());
+      b.y0 = std::min(b.y0, uv.y()), b.y1 = std::max(b.y1, uv.y());
     }
     if (behind || b.x1 < 0 || b.y1 < 0 || b.x0 >= k.width_px || b.y0 >= k.height_px) continue;
     boxes.push_back(b);
@@ -204,10 +205,29 @@ std::string quoted(const std::string& text) {
 // The camera review image: the raw left image, the detected boxes in their class colour
 // (solid) labelled with class, track id and range above, the true boxes (dashed magenta)
 // labelled with class and range below, and a legend.
-void render_camera_review(const fs::path& raw_png, const fs::path& out_png, int width, int height,
-                          const std::vector<TrueBox>& truth,
+// A box of the pinhole view (the stereo detector undistorts the images before it looks) where
+// the image, drawn through the lens, shows it: the bounding box of points along its edges.
+std::array<double, 4> box_in_image(const core::CameraIntrinsics& k, double x0, double y0,
+                                   double x1, double y1) {
+  if (!k.distorted()) return {x0, y0, x1, y1};
+  std::array<double, 4> out = {1e18, 1e18, -1e18, -1e18};
+  for (int i = 0; i <= 8; ++i)
+    for (int side = 0; side < 4; ++side) {
+      const double t = i / 8.0;
+      const double u = side == 0 ? x0 : side == 1 ? x1 : x0 + t * (x1 - x0);
+      const double v = side == 2 ? y0 : side == 3 ? y1 : y0 + t * (y1 - y0);
+      const Eigen::Vector2d p = k.pixel_of({(u - k.cx) / k.fx, (v - k.cy) / k.fy});
+      out = {std::min(out[0], p.x()), std::min(out[1], p.y()), std::max(out[2], p.x()),
+             std::max(out[3], p.y())};
+    }
+  return out;
+}
+
+void render_camera_review(const fs::path& raw_png, const fs::path& out_png,
+                          const core::CameraIntrinsics& k, const std::vector<TrueBox>& truth,
                           const slam::frontend::StereoDetections* detections,
                           const std::vector<int>& track_ids, const core::Vec2& camera_xy) {
+  const int width = k.width_px, height = k.height_px;
   // a box as four edges (x, y, dx, dy, colour) in gnuplot's axes: y up from the bottom
   auto edges = [height](PlotData& d, double x0, double y0, double x1, double y1, int rgb) {
     const double top = height - y0, bottom = height - y1;
@@ -231,7 +251,9 @@ void render_camera_review(const fs::path& raw_png, const fs::path& out_png, int 
     for (size_t i = 0; i < detections->cones.size(); ++i) {
       const auto& c = detections->cones[i];
       const int rgb = class_rgb(c.observation.cls);
-      edges(found_edges, c.box.x, c.box.y, c.box.x + c.box.width, c.box.y + c.box.height, rgb);
+      const auto [x0, y0, x1, y1] =
+          box_in_image(k, c.box.x, c.box.y, c.box.x + c.box.width, c.box.y + c.box.height);
+      edges(found_edges, x0, y0, x1, y1, rgb);
       const int id = i < track_ids.size() ? track_ids[i] : -1;
       const double range = (c.observation.position - camera_xy).norm();
       if (id >= 0)
@@ -241,7 +263,7 @@ void render_camera_review(const fs::path& raw_png, const fs::path& out_png, int 
         std::snprintf(text, sizeof(text), "%s %.1f m", class_name(c.observation.cls), range);
       char colour[16];
       std::snprintf(colour, sizeof(colour), "#%06x", rgb);
-      labels << "set label " << quoted(text) << " at " << c.box.x << "," << height - c.box.y + 2
+      labels << "set label " << quoted(text) << " at " << x0 << "," << height - y0 + 2
              << " left offset 0,0.6 font ',9' tc rgb '" << colour << "' front noenhanced\n";
     }
   std::ostringstream script;
@@ -810,8 +832,8 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
                  [&referee](int id) { return referee.is_knocked(id); });
   if (dump_.review_png)
     render_camera_review(dir / "left" / frame_name(index, "png"),
-                         dir / "review" / frame_name(index, "png"), frame_.left.width_px,
-                         frame_.left.height_px, truth, detections ? &*detections : nullptr,
+                         dir / "review" / frame_name(index, "png"), frame_.intrinsics, truth,
+                         detections ? &*detections : nullptr,
                          track_ids, frame_.left_in_vehicle.position.head<2>());
   const auto& k = frame_.intrinsics;
   const nlohmann::json sidecar = {{"stamp_us", t},
@@ -821,7 +843,8 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
                                     {"fx", k.fx},
                                     {"fy", k.fy},
                                     {"cx", k.cx},
-                                    {"cy", k.cy}}},
+                                    {"cy", k.cy},
+                                    {"distortion", k.distortion}}},
                                   {"baseline_m", frame_.baseline_m},
                                   {"left_in_vehicle", pose3_json(frame_.left_in_vehicle)},
                                   {"right_in_vehicle", pose3_json(frame_.right_in_vehicle)},
@@ -832,13 +855,17 @@ void SensorRig::render_camera(TimeUs t, const VehicleSim& car, const Referee& re
   nlohmann::json with_detections = sidecar;
   if (detections) {
     nlohmann::json cones = nlohmann::json::array();
-    for (const auto& c : detections->cones)
-      cones.push_back({{"box_xywh", {c.box.x, c.box.y, c.box.width, c.box.height}},
+    for (const auto& c : detections->cones) {
+      // the box in the image as written (the detector's own is in the undistorted view)
+      const auto [x0, y0, x1, y1] =
+          box_in_image(k, c.box.x, c.box.y, c.box.x + c.box.width, c.box.y + c.box.height);
+      cones.push_back({{"box_xywh", {x0, y0, x1 - x0, y1 - y0}},
                        {"class", std::string(core::to_string(c.observation.cls))},
                        {"x_vehicle", c.observation.position.x()},
                        {"y_vehicle", c.observation.position.y()},
                        {"disparity_px", c.disparity_px},
                        {"depth_m", c.depth_m}});
+    }
     with_detections["detections"] = cones;
   }
   nlohmann::json true_json = nlohmann::json::array();

@@ -5,6 +5,8 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <iterator>
 #include <utility>
 #include <vector>
 
@@ -180,7 +182,8 @@ inline sdk::StereoFrame to_sdk(const core::StereoFrame& f) {
   out.left = {f.left.width_px, f.left.height_px, f.left.rgb.data()};
   out.right = {f.right.width_px, f.right.height_px, f.right.rgb.data()};
   const core::CameraIntrinsics& k = f.intrinsics;
-  out.intrinsics = {k.width_px, k.height_px, k.fx, k.fy, k.cx, k.cy};
+  out.intrinsics = {k.width_px, k.height_px, k.fx, k.fy, k.cx, k.cy, {}};
+  std::copy(k.distortion.begin(), k.distortion.end(), out.intrinsics.distortion);
   out.left_in_vehicle = to_sdk(f.left_in_vehicle);
   out.right_in_vehicle = to_sdk(f.right_in_vehicle);
   out.baseline_m = f.baseline_m;
@@ -198,7 +201,8 @@ inline core::StereoFrame from_sdk(const sdk::StereoFrame& f) {
                                               static_cast<size_t>(from->height_px));
   }
   const sdk::CameraIntrinsics& k = f.intrinsics;
-  out.intrinsics = {k.width_px, k.height_px, k.fx, k.fy, k.cx, k.cy};
+  out.intrinsics = {k.width_px, k.height_px, k.fx, k.fy, k.cx, k.cy, {}};
+  std::copy(std::begin(k.distortion), std::end(k.distortion), out.intrinsics.distortion.begin());
   out.left_in_vehicle = from_sdk(f.left_in_vehicle);
   out.right_in_vehicle = from_sdk(f.right_in_vehicle);
   out.baseline_m = f.baseline_m;

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 #include <opencv2/core.hpp>
+#include <mutex>
+#include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
@@ -282,7 +284,15 @@ core::ConeObservations StereoDetections::observations() const {
   return out;
 }
 
-StereoConeDetector::StereoConeDetector(const StereoDetectorConfig& config) : config_(config) {
+struct StereoConeDetector::Undistortion {
+  std::mutex mutex;
+  // the calibration the maps are for
+  core::CameraIntrinsics intrinsics;
+  cv::Mat map1, map2;
+};
+
+StereoConeDetector::StereoConeDetector(const StereoDetectorConfig& config)
+    : config_(config), undistortion_(std::make_shared<Undistortion>()) {
   if (const std::string error = config.validate(); !error.empty())
     throw std::invalid_argument("stereo detector: " + error);
 }
@@ -302,9 +312,39 @@ StereoDetections StereoConeDetector::detect(const core::StereoFrame& frame) cons
   const double focal_baseline = k.fx * frame.baseline_m;
   if (!(focal_baseline > 0.0)) throw std::invalid_argument("stereo detector: no baseline");
 
+  // the pinhole view of both images (a lens that distorts is undone with its own calibration)
+  cv::Mat left = as_mat(frame.left);
+  cv::Mat right = as_mat(frame.right);
+  if (k.distorted()) {
+    cv::Mat map1, map2;
+    {
+      Undistortion& u = *undistortion_;
+      const std::lock_guard<std::mutex> lock(u.mutex);
+      const core::CameraIntrinsics& was = u.intrinsics;
+      if (u.map1.empty() || was.width_px != k.width_px || was.height_px != k.height_px ||
+          was.fx != k.fx || was.fy != k.fy || was.cx != k.cx || was.cy != k.cy ||
+          was.distortion != k.distortion) {
+        const cv::Matx33d camera(k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0);
+        const cv::Mat lens(k.distortion.size(), 1, CV_64F, const_cast<double*>(k.distortion.data()));
+        // fresh buffers: a caller may still be reading the old maps
+        cv::Mat fresh1, fresh2;
+        cv::initUndistortRectifyMap(camera, lens, cv::Mat(), camera, cv::Size(width, height),
+                                    CV_16SC2, fresh1, fresh2);
+        u.map1 = fresh1;
+        u.map2 = fresh2;
+        u.intrinsics = k;
+      }
+      map1 = u.map1;  // shared, read-only from here on
+      map2 = u.map2;
+    }
+    cv::Mat straight_left, straight_right;
+    cv::remap(left, straight_left, map1, map2, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+    cv::remap(right, straight_right, map1, map2, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+    left = straight_left;
+    right = straight_right;
+  }
+
   // colour masks of the left image, closed so that a pixel-wide gap does not split a band
-  const cv::Mat left = as_mat(frame.left);
-  const cv::Mat right = as_mat(frame.right);
   const std::array<cv::Mat, kBodyColours> masks = colour_masks(left, c);
   std::vector<Blob> boxes;
   const cv::Mat kernel =

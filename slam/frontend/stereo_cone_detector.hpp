@@ -7,6 +7,7 @@
 //   StereoConeDetector detector(config);
 //   StereoDetections d = detector.detect(frame);   // vehicle frame at the frame's stamp
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -112,13 +113,19 @@ class StereoConeDetector {
   /// Throws std::invalid_argument when config.validate() fails.
   explicit StereoConeDetector(const StereoDetectorConfig& config);
 
-  /// Finds the cones of one rectified pair (intrinsics and extrinsics from the frame).
+  /// Finds the cones of one rectified pair (intrinsics and extrinsics from the frame). When the
+  /// intrinsics carry lens distortion, both images are first undistorted to the pinhole camera
+  /// of the same fx, fy, cx, cy (cv::initUndistortRectifyMap, computed once per calibration):
+  /// the boxes and disparities are then those of the pinhole view.
   StereoDetections detect(const core::StereoFrame& frame) const;
 
   const StereoDetectorConfig& config() const { return config_; }
 
  private:
   StereoDetectorConfig config_;
+  // the undistortion maps of the last calibration seen, shared by copies, under a lock
+  struct Undistortion;
+  std::shared_ptr<Undistortion> undistortion_;
 };
 
 }  // namespace conesim::slam::frontend

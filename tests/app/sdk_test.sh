@@ -122,7 +122,7 @@ refused missing_file "autonomy\.driver: .*nowhere\.so: no such plug-in file" aut
   --set autonomy.driver=plugin:nowhere.so
 refused no_entry_point "autonomy\.driver: .*libtest_not_a_plugin\.so: no symbol conesim_plugin_entry" \
   autocross --set "autonomy.driver=plugin:$plugins/libtest_not_a_plugin.so"
-refused wrong_abi "libtest_wrong_abi_plugin\.so: built against conesim SDK ABI 999, and this conesim .* takes ABI 2" \
+refused wrong_abi "libtest_wrong_abi_plugin\.so: built against conesim SDK ABI 999, and this conesim .* takes ABI 3" \
   autocross --set "autonomy.driver=plugin:$plugins/libtest_wrong_abi_plugin.so"
 refused not_a_library "autonomy\.slam: .*: cannot load the plug-in" acceleration --set perception=cone_sensor \
   --set "autonomy.slam=plugin:$src/README.md"

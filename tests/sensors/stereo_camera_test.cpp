@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 #include <zlib.h>
 
+#include <opencv2/calib3d.hpp>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -347,6 +350,100 @@ TEST(StereoCamera, SegmentationNamesTheObjectOfEveryPixel) {
   EXPECT_EQ(rig.frame.right.rgb, before.right.rgb);
 }
 
+// A lens in OpenCV's model (the scenario default with sensors.realism on): the camera draws each
+// pixel through it, and cv::undistortPoints with the intrinsics the frame carries takes the
+// image back to the pinhole camera. Cones all over the view, near the corners too: each cone's
+// centroid in the lens's segmentation, undistorted, lands within 0.5 px of its centroid in the
+// pinhole camera's segmentation of the same view; and the lens really moves them (by pixels).
+// (What is left is the segmentation's own rounding: each image pixel shows the object at the
+// nearest pixel centre of the pinhole canvas, up to half a pixel from its ray.)
+TEST(StereoCamera, OpenCvUndoesTheLensWithThePublishedIntrinsics) {
+  StereoCameraConfig pinhole;
+  StereoCameraConfig lens = pinhole;
+  lens.distortion = kTypicalLensDistortion;
+  tracks::Track track;
+  track.name = "lens_test";
+  const double tan_half = std::tan(0.5 * pinhole.horizontal_fov_deg * std::numbers::pi / 180.0);
+  int id = 0;
+  for (const double x : {3.0, 4.5, 6.5, 9.0, 13.0})
+    for (const double side : {-0.85, -0.55, -0.25, 0.0, 0.3, 0.6, 0.88})
+      track.cones.push_back({id++, id % 2 ? ConeClass::kBlue : ConeClass::kYellow,
+                             {pinhole.mount_x_m + x, side * x * tan_half}, std::nullopt});
+  sim::VehicleSim car(vehicle_models::VehicleParams{}, {});
+  StereoCamera straight(pinhole, car.model(), track);
+  StereoCamera curved(lens, car.model(), track);
+  core::StereoFrame frame_straight, frame_curved;
+  core::StereoLabels labels;
+  SegmentationImage seg_straight, seg_curved;
+  straight.render(car.data(), car.vehicle_pose3(), 0, {}, false, frame_straight, labels);
+  straight.render_segmentation(seg_straight);
+  curved.render(car.data(), car.vehicle_pose3(), 0, {}, false, frame_curved, labels);
+  curved.render_segmentation(seg_curved);
+  ASSERT_EQ(seg_curved.width_px, lens.width_px);
+  ASSERT_EQ(frame_curved.left.width_px, lens.width_px);
+  const core::CameraIntrinsics& k = frame_curved.intrinsics;
+  ASSERT_EQ(k.distortion, kTypicalLensDistortion);
+
+  // each cone's centroid, its pixel count, and whether it touches the border
+  struct Blob {
+    double u = 0, v = 0;
+    int n = 0;
+    bool edge = false;
+  };
+  auto blobs = [](const SegmentationImage& seg) {
+    std::map<int, Blob> out;
+    for (int v = 0; v < seg.height_px; ++v)
+      for (int u = 0; u < seg.width_px; ++u)
+        if (const int id = seg.at(u, v); id >= 0) {
+          Blob& b = out[id];
+          b.u += u, b.v += v, ++b.n;
+          b.edge = b.edge || u == 0 || v == 0 || u == seg.width_px - 1 || v == seg.height_px - 1;
+        }
+    for (auto& [id, b] : out) b.u /= b.n, b.v /= b.n;
+    return out;
+  };
+  const std::map<int, Blob> a = blobs(seg_straight), b = blobs(seg_curved);
+  std::vector<cv::Point2d> seen;
+  std::vector<Blob> expected;
+  for (const auto& [cone, blob] : b)
+    if (const auto it = a.find(cone); it != a.end() && !blob.edge && !it->second.edge &&
+                                      blob.n >= 60 && it->second.n >= 60) {
+      seen.emplace_back(blob.u, blob.v);
+      expected.push_back(it->second);
+    }
+  ASSERT_GE(seen.size(), 15u);
+  const cv::Matx33d camera(k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0);
+  const std::vector<double> coefficients(k.distortion.begin(), k.distortion.end());
+  std::vector<cv::Point2d> undone;
+  cv::undistortPoints(seen, undone, camera, coefficients, cv::noArray(), camera);
+  double worst = 0.0, moved = 0.0;
+  for (size_t i = 0; i < seen.size(); ++i) {
+    worst = std::max(worst, std::hypot(undone[i].x - expected[i].u, undone[i].y - expected[i].v));
+    moved = std::max(moved, std::hypot(seen[i].x - expected[i].u, seen[i].y - expected[i].v));
+  }
+  std::vector<double> errors;
+  for (size_t i = 0; i < seen.size(); ++i)
+    errors.push_back(std::hypot(undone[i].x - expected[i].u, undone[i].y - expected[i].v));
+  std::sort(errors.begin(), errors.end());
+  std::printf("[lens] %zu cones: the lens moved them up to %.1f px; undone to within %.3f px "
+              "(median %.3f px)\n",
+              seen.size(), moved, worst, errors[errors.size() / 2]);
+  EXPECT_LE(worst, 0.5);
+  EXPECT_GE(moved, 5.0);
+  // the image is drawn through the same lens as the segmentation: its blue pixels (but the
+  // sky's) are on the blue cones' silhouettes, but for the edges that blend with the ground
+  int blue = 0, on_blue_cone = 0;
+  for (int v = 0; v < seg_curved.height_px; ++v)
+    for (int u = 0; u < seg_curved.width_px; ++u) {
+      const int id = seg_curved.at(u, v);
+      if (id == SegmentationImage::kNothing || !is_blue(pixel(frame_curved.left, u, v))) continue;
+      ++blue;
+      on_blue_cone += id >= 0 && track.cone(id).cls == ConeClass::kBlue;
+    }
+  ASSERT_GT(blue, 500);
+  EXPECT_GE(on_blue_cone, 0.98 * blue);
+}
+
 TEST(StereoCamera, WritesViewablePngs) {
   const Rig rig;
   const std::string dir = ::testing::TempDir();
@@ -433,6 +530,11 @@ TEST(StereoCamera, ConfigurationErrorsNameTheKey) {
   EXPECT_EQ(error([](auto& c) { c.horizontal_fov_deg = 200; }).rfind("horizontal_fov_deg", 0), 0u);
   EXPECT_EQ(error([](auto& c) { c.baseline_m = -0.1; }).rfind("baseline_m", 0), 0u);
   EXPECT_EQ(error([](auto& c) { c.far_m = 0.5; }).rfind("far_m", 0), 0u);
+  // a lens whose radial terms fold the image over before its corner, or a NaN term
+  EXPECT_EQ(error([](auto& c) { c.distortion = {-0.9, 0.0, 0.0, 0.0, 0.0}; }).rfind("distortion", 0),
+            0u);
+  EXPECT_EQ(error([](auto& c) { c.distortion[1] = std::nan(""); }).rfind("distortion: k2", 0), 0u);
+  EXPECT_EQ(error([](auto& c) { c.distortion = kTypicalLensDistortion; }), "");
 
   // larger than the model's offscreen buffer
   StereoCameraConfig huge;

@@ -172,7 +172,7 @@ struct LidarSweep {
   Pose3 sensor_in_vehicle;
 };
 
-/// Pinhole intrinsics of a rectified camera, pixels.
+/// Intrinsics of a rectified camera, pixels, with its lens distortion.
 struct CameraIntrinsics {
   int32_t width_px = 0;
   int32_t height_px = 0;
@@ -180,6 +180,10 @@ struct CameraIntrinsics {
   double fy = 0.0;
   double cx = 0.0;
   double cy = 0.0;
+  /// OpenCV's lens model (k1, k2, p1, p2, k3), as cv::undistortPoints and
+  /// cv::initUndistortRectifyMap take it: the images are drawn through it. All zero for a
+  /// pinhole camera (`sensors.realism: off`). Added in ABI 3.
+  double distortion[5] = {0.0, 0.0, 0.0, 0.0, 0.0};
 };
 
 /// An 8-bit RGB image, rows top to bottom, 3 bytes per pixel, no padding.
