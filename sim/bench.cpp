@@ -90,12 +90,13 @@ nlohmann::json bench_sensors(int repeats, bool closed_loop) {
     out["lidar_scan_ms_spread" + suffix] = spread(ms);
   }
 
-  // stereo: two 640x480 frames of the car at the start, with the sensor's noise (the default)
-  // and without it (`sensors.realism: off`)
+  // stereo: two 640x480 frames of the car at the start, with the sensor's noise and lens (the
+  // default) and without them (`sensors.realism: off`)
   for (const bool realism : {true, false}) {
     VehicleSim car(vehicle_models::VehicleParams{}, track.start.compose({-2.25, 0.0, 0.0}));
     sensors::StereoCameraConfig config;
     if (!realism) config.response.full_well_e = 0.0;
+    if (realism) config.distortion = sensors::kTypicalLensDistortion;
     sensors::StereoCamera camera(config, car.model(), track);
     core::StereoFrame frame;
     core::StereoLabels labels;
