@@ -211,12 +211,14 @@ void StereoCamera::plan_warp() {
         const double slope = k1 + r2 * (2.0 * k2 + 3.0 * r2 * k3);  // d radial / d r2
         const Eigen::Vector2d drawn(x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
                                     y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y);
-        Eigen::Matrix2d j;
-        j << radial + 2.0 * x * x * slope + 2.0 * p1 * y + 6.0 * p2 * x,
-            2.0 * x * y * slope + 2.0 * p1 * x + 2.0 * p2 * y,
-            2.0 * x * y * slope + 2.0 * p1 * x + 2.0 * p2 * y,
-            radial + 2.0 * y * y * slope + 6.0 * p1 * y + 2.0 * p2 * x;
-        const Eigen::Vector2d step = j.partialPivLu().solve(drawn - target);
+        // the Jacobian (symmetric) and its 2 x 2 solve
+        const double jxx = radial + 2.0 * x * x * slope + 2.0 * p1 * y + 6.0 * p2 * x;
+        const double jxy = 2.0 * x * y * slope + 2.0 * p1 * x + 2.0 * p2 * y;
+        const double jyy = radial + 2.0 * y * y * slope + 6.0 * p1 * y + 2.0 * p2 * x;
+        const Eigen::Vector2d miss = drawn - target;
+        const double det = jxx * jyy - jxy * jxy;
+        const Eigen::Vector2d step((jyy * miss.x() - jxy * miss.y()) / det,
+                                   (jxx * miss.y() - jxy * miss.x()) / det);
         p -= step;
         if (step.norm() < 1e-13) break;
       }
