@@ -244,7 +244,9 @@ void StereoCamera::plan_warp() {
     const double x = source[i].x() + margin_x, y = source[i].y() + margin_y;
     const double x0 = std::floor(x), y0 = std::floor(y);
     warp_[i] = {static_cast<int32_t>(y0) * canvas_.width_px + static_cast<int32_t>(x0),
-                static_cast<float>(x - x0), static_cast<float>(y - y0)};
+                static_cast<float>(x - x0), static_cast<float>(y - y0),
+                static_cast<uint32_t>(std::lround(256.0 * (x - x0))),
+                static_cast<uint32_t>(std::lround(256.0 * (y - y0)))};
     const int32_t at = warp_[i].nearest(canvas_.width_px);
     (*nearest)[i] = {at % canvas_.width_px - margin_x, at / canvas_.width_px - margin_y};
   }
@@ -478,11 +480,11 @@ void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& o
     const size_t row = 3 * static_cast<size_t>(w);
     for (const WarpSample& s : warp_) {
       const uint8_t* a = src + 3 * static_cast<size_t>(s.index);
-      const float wx = s.wx, wy = s.wy;
+      const uint32_t wx = s.ix, wy = s.iy;  // in 1/256
       for (int i = 0; i < 3; ++i, ++a) {
-        const float top = a[0] + wx * (static_cast<float>(a[3]) - a[0]);
-        const float bottom = a[row] + wx * (static_cast<float>(a[row + 3]) - a[row]);
-        *dst++ = static_cast<uint8_t>(top + wy * (bottom - top) + 0.5f);
+        const uint32_t top = a[0] * (256 - wx) + a[3] * wx;
+        const uint32_t bottom = a[row] * (256 - wx) + a[row + 3] * wx;
+        *dst++ = static_cast<uint8_t>((top * (256 - wy) + bottom * wy + 32768) >> 16);
       }
     }
   }

@@ -154,6 +154,9 @@ class StereoCamera {
     int32_t index = 0;
     float wx = 0.f;
     float wy = 0.f;
+    // the same weights in 1/256 (the blend in integers)
+    uint32_t ix = 0;
+    uint32_t iy = 0;
     // the nearest of the four (depth and segmentation are not blended across edges)
     int32_t nearest(int canvas_width) const {
       return index + (wx >= 0.5f ? 1 : 0) + (wy >= 0.5f ? canvas_width : 0);
