@@ -86,6 +86,7 @@ struct CameraIntrinsics {
   /// yd = y radial + p1 (r2 + 2 y^2) + 2 p2 x y. All zero: a pinhole camera.
   std::array<double, 5> distortion{};
 
+  bool operator==(const CameraIntrinsics&) const = default;
   bool distorted() const {
     for (const double d : distortion)
       if (d != 0.0) return true;

@@ -348,6 +348,20 @@ const std::vector<std::string>& yolo_class_names() {
   return names;
 }
 
+namespace {
+
+// true when q lies in the triangle (a, b, d) whose signed doubled area is `area` (its edges
+// included)
+bool covers(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& d,
+            double area, const Eigen::Vector2d& q) {
+  auto edge = [&](const Eigen::Vector2d& p0, const Eigen::Vector2d& p1) {
+    return ((p1 - p0).x() * (q - p0).y() - (p1 - p0).y() * (q - p0).x()) * area;
+  };
+  return edge(a, b) >= 0 && edge(b, d) >= 0 && edge(d, a) >= 0;
+}
+
+}  // namespace
+
 std::vector<ConeImageLabel> label_cones(const tracks::Track& track,
                                         const tracks::GroundModel& ground,
                                         const core::CameraIntrinsics& k,
@@ -440,22 +454,14 @@ std::vector<ConeImageLabel> label_cones(const tracks::Track& track,
           (pb - pa).x() * (pd - pa).y() - (pb - pa).y() * (pd - pa).x();
       for (int y = ty0; y <= ty1; ++y)
         for (int x = tx0; x <= tx1; ++x) {
-          if (in_pinhole && x >= 0 && y >= 0 && x < w && y < h) {
-            // inside the image: the pinhole point the segmentation decided this pixel at
-            const Eigen::Vector2d& q = (*pinhole_point)[static_cast<size_t>(y) * w + x];
-            auto side = [&](const Eigen::Vector2d& p0, const Eigen::Vector2d& p1) {
-              return ((p1 - p0).x() * (q - p0).y() - (p1 - p0).y() * (q - p0).x()) * pinhole_area;
-            };
-            if (side(pa, pb) >= 0 && side(pb, pd) >= 0 && side(pd, pa) >= 0)
-              cover[static_cast<size_t>(y - by0) * bw + (x - bx0)] = 1;
-            continue;
-          }
-          const Eigen::Vector2d q(x, y);
-          auto edge = [&](const Eigen::Vector2d& p0, const Eigen::Vector2d& p1) {
-            return ((p1 - p0).x() * (q - p0).y() - (p1 - p0).y() * (q - p0).x()) * area;
-          };
-          if (edge(a, b) >= 0 && edge(b, d) >= 0 && edge(d, a) >= 0)
-            cover[static_cast<size_t>(y - by0) * bw + (x - bx0)] = 1;
+          // inside the image through a lens: the pinhole point the segmentation decided this
+          // pixel at, against the triangle in the pinhole view
+          const bool through_lens = in_pinhole && x >= 0 && y >= 0 && x < w && y < h;
+          const bool in = through_lens
+                              ? covers(pa, pb, pd, pinhole_area,
+                                       (*pinhole_point)[static_cast<size_t>(y) * w + x])
+                              : covers(a, b, d, area, Eigen::Vector2d(x, y));
+          if (in) cover[static_cast<size_t>(y - by0) * bw + (x - bx0)] = 1;
         }
     }
 

@@ -70,6 +70,15 @@ void PerceptionScorer::count(double range_m, bool has_true, bool has_detection, 
   if (range_m < 10.0) add(within_10m_);
 }
 
+int off_track_label_near(const std::vector<OffTrackConeInView>& off_track, const core::Vec2& at,
+                         double cutoff_m) {
+  int label = core::ObservationLabels::kFalsePositive;
+  double nearest_m = cutoff_m;
+  for (const OffTrackConeInView& o : off_track)
+    if (const double d = (at - o.position).norm(); d <= nearest_m) nearest_m = d, label = o.label;
+  return label;
+}
+
 std::vector<int> PerceptionScorer::add_frame(const core::ConeObservations& detections,
                                              const std::vector<TrueConeInView>& truth,
                                              const std::vector<OffTrackConeInView>& off_track) {
@@ -103,12 +112,9 @@ std::vector<int> PerceptionScorer::add_frame(const core::ConeObservations& detec
       continue;
     }
     // the nearest off-track cone within the cut-off takes it (not counted either way)
-    double nearest_m = cutoff_m_;
-    for (const OffTrackConeInView& o : off_track)
-      if (const double d = (cones[i].position - o.position).norm(); d <= nearest_m)
-        nearest_m = d, true_ids[i] = o.label;
+    true_ids[i] = off_track_label_near(off_track, cones[i].position, cutoff_m_);
     const double range_m = (cones[i].position - sensor_).norm();
-    if (true_ids[i] == -1)
+    if (true_ids[i] == core::ObservationLabels::kFalsePositive)
       count(range_m, false, true, false, 0.0);
     else if (range_m < max_range_m_)
       ++off_track_detections_;

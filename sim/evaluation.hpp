@@ -42,6 +42,11 @@ struct OffTrackConeInView {
   core::Vec2 position = core::Vec2::Zero();
 };
 
+/// The label of the off-track cone nearest to `at` within `cutoff_m`, or
+/// ObservationLabels::kFalsePositive when none is that near.
+int off_track_label_near(const std::vector<OffTrackConeInView>& off_track, const core::Vec2& at,
+                         double cutoff_m);
+
 /// Scores perception frame by frame against the true cones in view: recall, precision, colour
 /// accuracy and position error overall and per range band (metrics.json `perception`).
 class PerceptionScorer {

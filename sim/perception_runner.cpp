@@ -267,15 +267,12 @@ DeliveredDetections PerceptionRunner::on_lidar(const sensors::LidarScan& scan,
   } else {
     // a cluster on a spare cone: that cone's label (the nearest spare cone to the detection)
     for (const auto& cone : detections.cones) {
-      int label = cluster_label(cone, scan.labels);
       const std::optional<int> majority = majority_label(cone, scan.labels);
-      if (majority && core::clutter_of_label(*majority) == core::ClutterClass::kSpareCone) {
-        double nearest_m = kClutterCutoffM;
-        for (const OffTrackConeInView& o : off_track)
-          if (const double d = (o.position - cone.observation.position).norm(); d <= nearest_m)
-            nearest_m = d, label = o.label;
-      }
-      labels.push_back(label);
+      const bool spare =
+          majority && core::clutter_of_label(*majority) == core::ClutterClass::kSpareCone;
+      labels.push_back(spare ? off_track_label_near(off_track, cone.observation.position,
+                                                    kClutterCutoffM)
+                             : cluster_label(cone, scan.labels));
     }
   }
 

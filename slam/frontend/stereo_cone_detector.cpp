@@ -320,10 +320,7 @@ StereoDetections StereoConeDetector::detect(const core::StereoFrame& frame) cons
     {
       Undistortion& u = *undistortion_;
       const std::lock_guard<std::mutex> lock(u.mutex);
-      const core::CameraIntrinsics& was = u.intrinsics;
-      if (u.map1.empty() || was.width_px != k.width_px || was.height_px != k.height_px ||
-          was.fx != k.fx || was.fy != k.fy || was.cx != k.cx || was.cy != k.cy ||
-          was.distortion != k.distortion) {
+      if (u.map1.empty() || u.intrinsics != k) {
         const cv::Matx33d camera(k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0);
         const cv::Mat lens(k.distortion.size(), 1, CV_64F, const_cast<double*>(k.distortion.data()));
         // fresh buffers: a caller may still be reading the old maps
