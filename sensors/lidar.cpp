@@ -2,6 +2,7 @@
 
 #include <embree3/rtcore.h>
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -109,6 +110,8 @@ struct RayBounds {
 
 // the label of a ray that meets nothing
 constexpr int kNoReturn = std::numeric_limits<int>::min();
+// how far past the ground a ray that meets it runs (besides 1e-4 of its range)
+constexpr float kGroundSlackM = 1e-3f;
 
 // count rays from origin, one per channel: their directions, how far each can find anything, and
 // where each meets the ground plane (kNoReturn where it does not). One branch-free pass over
@@ -125,7 +128,6 @@ void cast_rays(int count, const float* __restrict cos_elevation,
   const float max_range = bounds.max_range, top_z = bounds.top_z, floor_z = bounds.floor_z;
   const float lo_x = bounds.lo_x, lo_y = bounds.lo_y, hi_x = bounds.hi_x, hi_y = bounds.hi_y;
   const float falloff = bounds.falloff, ground_scale = bounds.ground_scale;
-  constexpr float kGroundSlackM = 1e-3f;
   const bool above_all = oz >= top_z;
   for (int ch = 0; ch < count; ++ch) {
     // the beam's direction: its elevation between the heading and the up axis
@@ -298,9 +300,19 @@ bool march(float u0, float v0, float du, float dv, float t_enter, float t_leave,
 // above the grade's plane (a bump's height, not the grade's rise over the block), so that a ray
 // passes over a block it stays above without visiting its cells
 constexpr int kGroundBlock = 8;
+// a block whose vertices all lie this close to one plane is met as that plane (far below the
+// range noise of any LiDAR, and a fraction of what single precision keeps of a venue's heights)
+constexpr double kPlanarBlockM = 5e-5;
 struct GroundBlocks {
   int nx = 0, ny = 0;
   std::vector<float> max_above;
+  // for each block, the plane z = z0 + sx x + sy y it lies in, when it does (planar: most of a
+  // venue between its bumps, on a grade or a crown's flanks)
+  struct Plane {
+    bool planar = false;
+    float z0 = 0.f, sx = 0.f, sy = 0.f;
+  };
+  std::vector<Plane> planes;
 
   explicit GroundBlocks(const tracks::GroundGrid& g)
       : nx((g.nx - 1 + kGroundBlock - 1) / kGroundBlock),
@@ -319,6 +331,33 @@ struct GroundBlocks {
             float& m = max_above[static_cast<size_t>(bj) * nx + bi];
             m = std::max(m, above);
           }
+      }
+    // each block's least-squares plane through its vertices, kept when none strays from it
+    planes.resize(max_above.size());
+    for (int bj = 0; bj < ny; ++bj)
+      for (int bi = 0; bi < nx; ++bi) {
+        const int i0 = bi * kGroundBlock, i1 = std::min(g.nx - 1, i0 + kGroundBlock);
+        const int j0 = bj * kGroundBlock, j1 = std::min(g.ny - 1, j0 + kGroundBlock);
+        // (about the block's corner, in metres)
+        Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+        for (int j = j0; j <= j1; ++j)
+          for (int i = i0; i <= i1; ++i) {
+            const Eigen::Vector3d row(1.0, (i - i0) * g.cell_m, (j - j0) * g.cell_m);
+            normal += row * row.transpose();
+            rhs += row * g.at(i, j);
+          }
+        const Eigen::Vector3d c = normal.ldlt().solve(rhs);
+        double stray = 0.0;
+        for (int j = j0; j <= j1; ++j)
+          for (int i = i0; i <= i1; ++i)
+            stray = std::max(stray, std::abs(c[0] + c[1] * (i - i0) * g.cell_m +
+                                             c[2] * (j - j0) * g.cell_m - g.at(i, j)));
+        if (!(stray <= kPlanarBlockM)) continue;
+        const double cx = g.x0 + i0 * g.cell_m, cy = g.y0 + j0 * g.cell_m;
+        planes[static_cast<size_t>(bj) * nx + bi] = {
+            true, static_cast<float>(c[0] - c[1] * cx - c[2] * cy), static_cast<float>(c[1]),
+            static_cast<float>(c[2])};
       }
   }
 };
@@ -381,8 +420,18 @@ bool meet_grid(const tracks::GroundGrid& g, const GroundBlocks& blocks,
                  // the ray's lowest over the block, above the grade's plane (a millimetre for
                  // the rounding of single precision)
                  const float lowest = above + climb * (climb < 0.f ? tb : ta);
-                 if (lowest > blocks.max_above[static_cast<size_t>(bj) * blocks.nx + bi] + 1e-3f)
-                   return false;
+                 const size_t k = static_cast<size_t>(bj) * blocks.nx + bi;
+                 if (lowest > blocks.max_above[k] + 1e-3f) return false;
+                 // a planar block: where the ray comes down through its plane, if over it
+                 if (const GroundBlocks::Plane& p = blocks.planes[k]; p.planar) {
+                   const float h0 = origin.z() - (p.z0 + p.sx * origin.x() + p.sy * origin.y());
+                   const float rate = dir.z() - p.sx * dir.x() - p.sy * dir.y();
+                   const float ha = h0 + rate * ta, hb = h0 + rate * tb;
+                   if (!(ha >= 0.f && hb <= 0.f && ha > hb)) return false;
+                   t_hit = ta + (tb - ta) * ha / (ha - hb);
+                   normal = Eigen::Vector3f(-p.sx, -p.sy, 1.f);
+                   return true;
+                 }
                  return march(u0, v0, du, dv, ta, tb, g.nx - 1, g.ny - 1, cell_hit);
                });
 }
@@ -422,6 +471,8 @@ struct Lidar::Impl {
   bool uneven = false;
   float grade_x = 0.f, grade_y = 0.f, grade_z0 = 0.f;
   float band_lo = 0.f, band_hi = 0.f;
+  // the height above the grade's plane that every cone and scenery object stays below
+  float stuff_above = 0.f;
   std::vector<Channel> channels;
   // the same, one array per term, for the loops over a column's rays
   std::vector<float> channel_cos, channel_sin;
@@ -484,7 +535,8 @@ struct Lidar::Impl {
   void build_ground(const tracks::GroundModel& ground);
   static RTCRayHit ray_hit(const Eigen::Vector3f& origin, const Eigen::Vector3f& dir, float tnear,
                            float tfar);
-  void trace_ground(ChunkRays& rays, int first, const Eigen::Vector3f& origin) const;
+  float trace_ground(ChunkRays& rays, int first, const Eigen::Vector3f& origin,
+                     const Eigen::Vector3f& heading, const Eigen::Vector3f& up) const;
   void throw_on_device_error(const char* what) const;
   float intensity_of(float reflectivity_of_surface, float cos_incidence, float range) const;
   float cast_column(ChunkRays& rays, int first, const Eigen::Vector3f& origin,
@@ -556,9 +608,13 @@ void Lidar::Impl::hit_cone(const SceneCone& cone, const Eigen::Vector3f& origin,
       intensity_of(class_reflectivity[cone.cls][ray.hit.primID], cos_incidence, ray.ray.tfar);
 }
 
-// a ground that is not flat: each ray of a column that can find anything is marched over the
-// ground's grid instead of meeting the plane z = 0 (label, range and intensity as the plane's)
-void Lidar::Impl::trace_ground(ChunkRays& rays, int first, const Eigen::Vector3f& origin) const {
+// a ground that is not flat: a column's rays as cast_column() casts them down to the floor under
+// the ground's lowest point, then each ray that can find anything marched over the ground's grid
+// instead of meeting the plane z = 0 (label, range and intensity as the plane's) and ended just
+// past where it meets it; returns the longest ray
+float Lidar::Impl::trace_ground(ChunkRays& rays, int first, const Eigen::Vector3f& origin,
+                                const Eigen::Vector3f& heading, const Eigen::Vector3f& up) const {
+  cast_column(rays, first, origin, heading, up);
   const int count = static_cast<int>(channels.size());
   // the origin's height above the grade's plane
   const float above = origin.z() - (grade_x * origin.x() + grade_y * origin.y() + grade_z0);
@@ -570,11 +626,22 @@ void Lidar::Impl::trace_ground(ChunkRays& rays, int first, const Eigen::Vector3f
     // the stretch of the ray within the band about the grade's plane that holds the ground:
     // the only place it can meet it (none for most rays that climb away from it)
     const float climb = rays.dir_z[slot] - grade_x * rays.dir_x[slot] - grade_y * rays.dir_y[slot];
-    float enter = 0.f, leave = length;
+    // a ray that climbs away from the grade's plane meets nothing once it is above everything
+    // that stands on the ground (on a grade the floor and the top of the whole venue, where
+    // cast_column() ends it, lie far below and above the ground near the car)
+    if (climb >= 0.f) {
+      const float rise = stuff_above - above;
+      const float to_top =
+          climb > 0.f ? rise / climb * 1.0001f + kGroundSlackM : (rise >= 0.f ? length : 0.f);
+      rays.length[slot] = std::clamp(to_top, 0.f, length);
+      // (from above the ground's band it never comes down to the ground)
+      if (above > band_hi) continue;
+    }
+    float enter = 0.f, leave = rays.length[slot];
     if (climb != 0.f) {
       const float to_lo = (band_lo - above) / climb, to_hi = (band_hi - above) / climb;
       enter = std::max(0.f, std::min(to_lo, to_hi));
-      leave = std::min(length, std::max(to_lo, to_hi));
+      leave = std::min(leave, std::max(to_lo, to_hi));
     } else if (above < band_lo || above > band_hi) {
       continue;
     }
@@ -586,9 +653,14 @@ void Lidar::Impl::trace_ground(ChunkRays& rays, int first, const Eigen::Vector3f
       continue;
     rays.label[slot] = core::PointCloudLabels::kGroundLabel;
     rays.range[slot] = t;
+    // nothing beyond the ground is seen: the ray ends just past it, as on the plane
+    rays.length[slot] = std::min(length, t * 1.0001f + kGroundSlackM);
     rays.intensity[slot] = ray_bounds.ground_scale * std::abs(dir.dot(normal)) / normal.norm() /
                            (1.f + t * t * ray_bounds.falloff);
   }
+  float reach = 0.f;
+  for (int slot = first; slot < first + count; ++slot) reach = std::max(reach, rays.length[slot]);
+  return reach;
 }
 
 // the ground's grid and the band about its grade's plane that holds it
@@ -741,6 +813,15 @@ void Lidar::Impl::build_scene(const tracks::Track& track,
                      top + static_cast<float>(kTopSlackM) + z, true, z});
     ray_bounds.top_z = std::max(ray_bounds.top_z, top + static_cast<float>(kTopSlackM) + z);
   }
+  // on ground that is not flat: the highest any of them reaches above the grade's plane (the
+  // plane rises by up to its slope times the footprint's radius across one)
+  if (uneven) {
+    const float slope = std::hypot(grade_x, grade_y);
+    stuff_above = band_hi;
+    for (const SceneCone& c : cones)
+      stuff_above = std::max(stuff_above, c.top_m - (grade_x * c.x + grade_y * c.y + grade_z0) +
+                                              slope * c.footprint_m);
+  }
   throw_on_device_error("building the scene");
 }
 
@@ -848,6 +929,7 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
     if (cone.present) standing.push_back(&cone);
   std::vector<const Impl::SceneCone*> chunk_cones;
   std::vector<NearCone> column_cones;
+  std::vector<int> near_ray;
   // the ground's intensity before the incidence and the range fall-off
 
   RTCIntersectContext context;
@@ -887,8 +969,8 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
       Fan& fan = column_fans[j];
       fan.origin_x = origin.x();
       fan.origin_y = origin.y();
-      fan.reach = im.cast_column(rays, j * channel_count, origin, heading, up);
-      if (im.uneven) im.trace_ground(rays, j * channel_count, origin);
+      fan.reach = im.uneven ? im.trace_ground(rays, j * channel_count, origin, heading, up)
+                            : im.cast_column(rays, j * channel_count, origin, heading, up);
 
       // headings of the beams turn monotonically with elevation: the lowest and the highest
       // bound the column's fan
@@ -1008,6 +1090,9 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
         const float behind_energy = behind_label == kNoReturn ? 0.f : rays.intensity[slot];
         float reach = behind_range;
         bool traced = false;
+        // the cones this ray passes near (so do its spot's outer thirds: the footprints are
+        // widened by half the spot)
+        near_ray.clear();
         for (size_t k = 0; k < cone_count; ++k) {
           const NearCone& cone = column_cones[k];
           if (!near_all) {
@@ -1024,6 +1109,7 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
           }
           im.hit_cone(im.cones[cone.index], origin, Eigen::Vector3f(dx, dy, dz), context, reach,
                       rays.label[slot], rays.intensity[slot]);
+          near_ray.push_back(cone.index);
           traced = true;
         }
         if (traced) rays.range[slot] = reach;
@@ -1043,8 +1129,8 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
             Echo& part = parts[1 + side];
             part = {behind_range, behind_label, behind_energy};
             float part_reach = behind_range;
-            for (const NearCone& cone : column_cones)
-              im.hit_cone(im.cones[cone.index], origin, dir, context, part_reach, part.label,
+            for (int index : near_ray)
+              im.hit_cone(im.cones[index], origin, dir, context, part_reach, part.label,
                           part.energy);
             part.range = part_reach;
           }

@@ -859,59 +859,67 @@ TEST(Lidar, OnUnevenGroundThePointsLieOnTheHeightModel) {
   // lies half a metre and more from z = 0
   tracks::Track track = ring_of_cones();
   track.start = {-43.0, 0.0, 0.0};
-  tracks::GroundConfig shape;
-  shape.grade_percent = 2.0;
-  shape.grade_heading_deg = 30.0;
-  shape.undulation_amplitude_m = 0.1;
-  shape.bump_height_m = 0.04;
-  shape.bumps_per_100m2 = 5.0;
-  const tracks::GroundModel ground(track, shape, 3);
-  ASSERT_FALSE(ground.flat());
-  for (double sigma : {0.0, 0.015}) {
-    // thin rays (no mixed returns at the cones' edges); the noise grows with range
-    LidarConfig config;
-    config.beam_divergence_mrad = 0.0;
-    config.range_noise_sigma_m = sigma;
-    if (sigma == 0.0) config.range_noise_growth = 0.0;
-    const Lidar lidar(config, track, {}, ground);
-    Pose3 start = planar_pose(-3.0, 1.0, 0.2);
-    start.position.z() = ground.height(-3.0, 1.0);
-    const PoseHistory poses = drive(start, 0.0, 0, 200'000);
-    core::Rng rng(7);
-    const LidarScan scan = lidar.sweep(0, poses, rng);
+  // undulating ground, and a grade with bumps between which the ground is planar (met there as
+  // its blocks' planes rather than cell by cell)
+  tracks::GroundConfig undulating;
+  undulating.grade_percent = 2.0;
+  undulating.grade_heading_deg = 30.0;
+  undulating.undulation_amplitude_m = 0.1;
+  undulating.bump_height_m = 0.04;
+  undulating.bumps_per_100m2 = 5.0;
+  tracks::GroundConfig graded = undulating;
+  graded.undulation_amplitude_m = 0.0;
+  graded.bumps_per_100m2 = 2.0;
+  for (const tracks::GroundConfig& shape : {undulating, graded})
+    for (double sigma : {0.0, 0.015}) {
+      SCOPED_TRACE(shape.undulation_amplitude_m > 0.0 ? "undulating" : "graded");
+      const tracks::GroundModel ground(track, shape, 3);
+      ASSERT_FALSE(ground.flat());
+      // thin rays (no mixed returns at the cones' edges); the noise grows with range
+      LidarConfig config;
+      config.beam_divergence_mrad = 0.0;
+      config.range_noise_sigma_m = sigma;
+      if (sigma == 0.0) config.range_noise_growth = 0.0;
+      const Lidar lidar(config, track, {}, ground);
+      Pose3 start = planar_pose(-3.0, 1.0, 0.2);
+      start.position.z() = ground.height(-3.0, 1.0);
+      const PoseHistory poses = drive(start, 0.0, 0, 200'000);
+      core::Rng rng(7);
+      const LidarScan scan = lidar.sweep(0, poses, rng);
 
-    // the grid holds heights in single precision: a few micrometres at these heights
-    const double facets = facet_deviation_m(cone_shape(ConeClass::kOrangeBig), 24);
-    int ground_points = 0, off_the_plane = 0;
-    std::vector<int> per_cone(track.cones.size() + 1, 0);
-    for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
-      const Eigen::Vector3d p = in_track(lidar, poses, scan.cloud, scan.cloud.points[i]);
-      const int id = scan.labels.cone_id[i];
-      // the sigma at the point's range (the range drawn off it by the noise: 1e-4 of 5 sigma)
-      const double tolerance =
-          5.0 * (sigma + config.range_noise_growth * range_of(scan.cloud.points[i])) * (1.0 + 0.1) +
-          1e-4;
-      if (id == core::PointCloudLabels::kGroundLabel) {
-        ASSERT_NEAR(p.z(), ground.height(p.x(), p.y()), tolerance) << "ground point " << i;
-        ++ground_points;
-        off_the_plane += std::abs(p.z()) > tolerance + 0.02;
-        continue;
+      // the grid holds heights in single precision: a few micrometres at these heights
+      const double facets = facet_deviation_m(cone_shape(ConeClass::kOrangeBig), 24);
+      int ground_points = 0, off_the_plane = 0;
+      std::vector<int> per_cone(track.cones.size() + 1, 0);
+      for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+        const Eigen::Vector3d p = in_track(lidar, poses, scan.cloud, scan.cloud.points[i]);
+        const int id = scan.labels.cone_id[i];
+        // the sigma at the point's range (the range drawn off it by the noise: 1e-4 of 5 sigma)
+        const double tolerance =
+            5.0 * (sigma + config.range_noise_growth * range_of(scan.cloud.points[i])) *
+                (1.0 + 0.1) +
+            1e-4;
+        if (id == core::PointCloudLabels::kGroundLabel) {
+          ASSERT_NEAR(p.z(), ground.height(p.x(), p.y()), tolerance) << "ground point " << i;
+          ++ground_points;
+          off_the_plane += std::abs(p.z()) > tolerance + 0.02;
+          continue;
+        }
+        const tracks::Cone& cone = track.cone(id);
+        const Eigen::Vector3d base(cone.position.x(), cone.position.y(),
+                                   ground.height(cone.position.x(), cone.position.y()));
+        ASSERT_LT(cone_shape(cone.cls).surface_distance(p - base), tolerance + facets)
+            << "cone " << id << " point " << (p - base).transpose();
+        ++per_cone[id];
       }
-      const tracks::Cone& cone = track.cone(id);
-      const Eigen::Vector3d base(cone.position.x(), cone.position.y(),
-                                 ground.height(cone.position.x(), cone.position.y()));
-      ASSERT_LT(cone_shape(cone.cls).surface_distance(p - base), tolerance + facets)
-          << "cone " << id << " point " << (p - base).transpose();
-      ++per_cone[id];
-    }
-    EXPECT_GT(ground_points, 5000);
-    EXPECT_GT(off_the_plane, ground_points / 2);
-    for (const tracks::Cone& cone : track.cones) {
-      if ((cone.position - core::Vec2(-3.0, 1.0)).norm() < 10.0) {
-        EXPECT_GT(per_cone[cone.id], 0) << cone.id;
+      EXPECT_GT(ground_points, 5000);
+      EXPECT_GT(off_the_plane, ground_points / 2);
+      for (const tracks::Cone& cone : track.cones) {
+        if ((cone.position - core::Vec2(-3.0, 1.0)).norm() < 10.0) {
+          EXPECT_GT(per_cone[cone.id], 0) << cone.id;
+        }
       }
     }
-  }
 }
 
 // Grass strips laid on a grade (tracks::lay_on_ground) stay a 6 cm step all along: every point
@@ -926,8 +934,8 @@ TEST(Lidar, GrassLaidOnAGradeFollowsTheGround) {
   const tracks::GroundModel ground(track, shape, 3);
   // strips ahead of the car, along and across the grade
   std::vector<tracks::SceneryObject> strips;
-  for (const core::Pose2& at : {core::Pose2{6.0, 3.0, 0.0}, core::Pose2{6.0, -3.0, 1.5708},
-                                core::Pose2{9.0, 0.5, 0.0}})
+  for (const core::Pose2& at :
+       {core::Pose2{6.0, 3.0, 0.0}, core::Pose2{6.0, -3.0, 1.5708}, core::Pose2{9.0, 0.5, 0.0}})
     strips.push_back(tracks::make_scenery_object(core::ClutterClass::kGrassEdge, at));
   const double strip_height = strips[0].height_m;
   Pose3 start = planar_pose(0.0, 0.0, 0.0);
@@ -942,14 +950,16 @@ TEST(Lidar, GrassLaidOnAGradeFollowsTheGround) {
     double highest = 0.0;
     int on_grass = 0;
     for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
-      if (core::clutter_of_label(scan.labels.cone_id[i]) != core::ClutterClass::kGrassEdge) continue;
+      if (core::clutter_of_label(scan.labels.cone_id[i]) != core::ClutterClass::kGrassEdge)
+        continue;
       const Eigen::Vector3d p = in_track(lidar, poses, scan.cloud, scan.cloud.points[i]);
       highest = std::max(highest, p.z() - ground.height(p.x(), p.y()));
       ++on_grass;
     }
     ASSERT_GT(on_grass, 50);
     if (laid)
-      EXPECT_LT(highest, strip_height + 0.002);  // (the grade is a plane: the strip lies flat on it)
+      EXPECT_LT(highest,
+                strip_height + 0.002);  // (the grade is a plane: the strip lies flat on it)
     else
       EXPECT_GT(highest, strip_height + 0.02);  // up to 8 cm out of the slope at the downhill end
   }
