@@ -82,8 +82,10 @@ bool ViewVolume::may_see(const Eigen::Vector3d& centre, double radius) const {
 ConeSceneWriter::ConeSceneWriter(const mjModel* model, const std::vector<tracks::Cone>& cones,
                                  const tracks::GroundModel& ground)
     : cones_(cones) {
-  for (const tracks::Cone& cone : cones_)
+  for (const tracks::Cone& cone : cones_) {
+    index_[cone.id] = base_z_.size();
     base_z_.push_back(ground.height(cone.position.x(), cone.position.y()));
+  }
   for (int c = 0; c < static_cast<int>(models_.size()); ++c) {
     const auto cls = static_cast<core::ConeClass>(c);
     const core::ConeGeometry shape = core::cone_geometry(cls);
@@ -136,6 +138,21 @@ int ConeSceneWriter::append(mjvScene* scene, const IsKnocked& is_knocked,
     g->texcoord = 1;
   }
   return dropped;
+}
+
+std::vector<ConeSceneWriter::Box> ConeSceneWriter::shadow_boxes(const mjvGeom& geom) const {
+  if (geom.objtype != mjOBJ_UNKNOWN || geom.type != mjGEOM_MESH) return {};
+  const auto it = index_.find(geom.objid);
+  if (it == index_.end()) return {};
+  const tracks::Cone& cone = cones_[it->second];
+  const core::ConeGeometry shape = core::cone_geometry(cone.cls);
+  // the body's mean radius is about 0.27 of the base's width for both sizes of cone
+  constexpr double kPlateM = 0.01, kBodyShare = 0.27;
+  const Eigen::Vector3d base(cone.position.x(), cone.position.y(), base_z_[it->second]);
+  const double w = 0.5 * shape.base_width_m, h = shape.height_m;
+  return {{base + Eigen::Vector3d(0.0, 0.0, 0.5 * kPlateM), {w, w, 0.5 * kPlateM}},
+          {base + Eigen::Vector3d(0.0, 0.0, 0.5 * h),
+           {kBodyShare * shape.base_width_m, kBodyShare * shape.base_width_m, 0.5 * h}}};
 }
 
 int scenery_geom_count(const std::vector<tracks::SceneryObject>& scenery) {

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <functional>
+#include <unordered_map>
 #include <vector>
 
 #include "core/cone.hpp"
@@ -59,6 +60,15 @@ class ConeSceneWriter {
   /// the number of cones that did not fit in the scene (zero when maxgeom is large enough).
   int append(mjvScene* scene, const IsKnocked& is_knocked, const ViewVolume& view) const;
 
+  /// A box in the track frame (axes along the track's), by its centre and half sizes.
+  struct Box {
+    Eigen::Vector3d centre, half;
+  };
+  /// What stands in for a cone that append() drew (the geom's objid is its id) when it casts a
+  /// shadow: its base plate, and its body as a box of its mean width. Empty for a geom that is
+  /// none of these cones.
+  std::vector<Box> shadow_boxes(const mjvGeom& geom) const;
+
  private:
   // how a cone class is drawn: its mesh (placed in the cone frame), texture and bounding sphere
   struct ConeModel {
@@ -71,6 +81,8 @@ class ConeSceneWriter {
   };
 
   std::vector<tracks::Cone> cones_;
+  // index into cones_ by cone id
+  std::unordered_map<int, size_t> index_;
   // the ground's height under each cone, in cones_ order
   std::vector<double> base_z_;
   std::array<ConeModel, 5> models_;

@@ -1,6 +1,10 @@
 #include "sensors/stereo_camera.hpp"
 
+#include "core/rng.hpp"
+
+#define GL_GLEXT_PROTOTYPES
 #include <GL/gl.h>
+#include <GL/glext.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -25,6 +29,67 @@ constexpr double kSkyGradientSine = 0.5;
 // half size of the ground square in far distances: the far plane, not the square's edge, then
 // bounds the ground for fields of view up to 150 degrees (1 / cos 75 deg = 3.9)
 constexpr double kGroundHalfSizeInFar = 4.0;
+
+// the asphalt texture's texels: 8 mm each, so that a 512-texel texture repeats every 4.1 m
+constexpr double kAsphaltTexelM = 0.008;
+
+// value noise on a periodic lattice of `cells` x `cells` over a size x size texture (so that the
+// texture tiles without a seam): smooth, in [-1, 1]
+std::vector<float> periodic_noise(int size, int cells, core::Rng& rng) {
+  std::vector<float> lattice(static_cast<size_t>(cells) * cells);
+  for (float& v : lattice) v = static_cast<float>(core::uniform(rng, -1.0, 1.0));
+  std::vector<float> out(static_cast<size_t>(size) * size);
+  const double step = static_cast<double>(cells) / size;
+  const auto smooth = [](double t) { return t * t * (3.0 - 2.0 * t); };
+  for (int y = 0; y < size; ++y)
+    for (int x = 0; x < size; ++x) {
+      const double u = x * step, v = y * step;
+      const int i = static_cast<int>(u), j = static_cast<int>(v);
+      const double fu = smooth(u - i), fv = smooth(v - j);
+      const auto at = [&](int a, int b) {
+        return lattice[static_cast<size_t>(b % cells) * cells + static_cast<size_t>(a % cells)];
+      };
+      const double top = at(i, j) + fu * (at(i + 1, j) - at(i, j));
+      const double bottom = at(i, j + 1) + fu * (at(i + 1, j + 1) - at(i, j + 1));
+      out[static_cast<size_t>(y) * size + x] = static_cast<float>(top + fv * (bottom - top));
+    }
+  return out;
+}
+
+}  // namespace
+
+std::vector<uint8_t> asphalt_texture(int size, uint64_t seed) {
+  // asphalt as a camera sees it: a dark grey of the flat ground's mean colour with light and dark
+  // stones of the aggregate (single texels), a grain of a few centimetres, blotches of some
+  // decimetres, half a metre and patches of two (wear, repairs); every term drawn from the seed
+  core::Rng rng(seed);
+  const std::vector<float> grain = periodic_noise(size, size / 4, rng);
+  const std::vector<float> blotch = periodic_noise(size, size / 32, rng);
+  const std::vector<float> mid = periodic_noise(size, 8, rng);
+  const std::vector<float> patch = periodic_noise(size, 2, rng);
+  std::vector<double> shade(grain.size());
+  double sum = 0.0;
+  for (size_t k = 0; k < grain.size(); ++k) {
+    const double stone = core::uniform(rng, 0.0, 1.0);
+    shade[k] =
+        std::max(0.0, 1.0 + 0.10 * grain[k] + 0.15 * blotch[k] + 0.15 * mid[k] + 0.15 * patch[k] +
+                          (stone < 0.03   ? 0.35
+                           : stone > 0.97 ? -0.3
+                                          : 0.0) +
+                          0.06 * core::uniform(rng, -1.0, 1.0));
+    sum += shade[k];
+  }
+  // (the mean shade of a drawn texture is 1)
+  const double scale = static_cast<double>(shade.size()) / sum;
+  std::vector<uint8_t> rgb(3 * static_cast<size_t>(size) * size);
+  for (size_t k = 0; k < shade.size(); ++k)
+    for (int c = 0; c < 3; ++c)
+      rgb[3 * k + c] = static_cast<uint8_t>(
+          std::clamp(255.0 * kAsphalt[c] * shade[k] * scale + 0.5, 0.0, 255.0));
+  return rgb;
+}
+
+namespace {
 
 // vehicle frame from the optical frame of a camera pitched down by pitch_rad
 Eigen::Quaterniond vehicle_from_optical(double pitch_rad) {
@@ -58,6 +123,12 @@ std::string StereoCameraConfig::validate() const {
     return "far_m: must exceed 10 x near_m and be at most 2000";
   if (!(light_ambient >= 0.0 && light_ambient <= 1.0)) return "light_ambient: must be 0-1";
   if (!(light_diffuse >= 0.0 && light_diffuse <= 1.0)) return "light_diffuse: must be 0-1";
+  if (!(sun_diffuse >= 0.0 && sun_diffuse <= 1.0)) return "sun.diffuse: must be 0-1";
+  if (!(sun_elevation_deg >= 5.0 && sun_elevation_deg <= 90.0))
+    return "sun.elevation_deg: must be 5-90 (a lower sun casts shadows longer than the view)";
+  if (!std::isfinite(sun_azimuth_deg)) return "sun.azimuth_deg: must be finite";
+  if (!(shadow_strength >= 0.0 && shadow_strength <= 1.0))
+    return "sun.shadow_strength: must be 0-1";
   // the lens: finite terms of a size real lenses have, and a radial map that keeps growing out
   // to the image's corner (else two rays would land on one pixel and the model has no inverse)
   const char* names[5] = {"k1", "k2", "p1", "p2", "k3"};
@@ -144,9 +215,8 @@ StereoCamera::StereoCamera(const StereoCameraConfig& config, const mjModel* mode
           std::to_string(model->vis.global.offwidth) + " x " +
           std::to_string(model->vis.global.offheight));
     // the same focal length over the larger canvas (MuJoCo matches the width to the aspect)
-    frustum_half_height_ = static_cast<float>(frustum_half_height_ *
-                                              static_cast<double>(canvas_.height_px) /
-                                              config.height_px);
+    frustum_half_height_ = static_cast<float>(
+        frustum_half_height_ * static_cast<double>(canvas_.height_px) / config.height_px);
   }
   const int cw = canvas_.width_px, ch = canvas_.height_px;
 
@@ -160,11 +230,35 @@ StereoCamera::StereoCamera(const StereoCameraConfig& config, const mjModel* mode
     throw std::runtime_error("stereo camera: MuJoCo has no offscreen buffer under OSMesa");
   }
 
+  // the ground's grain: the model's asphalt texture, drawn afresh from the seed
+  if (config.ground_texture) {
+    const int id = mj_name2id(model, mjOBJ_TEXTURE, "asphalt");
+    if (id < 0 || model->tex_type[id] != mjTEXTURE_2D || id >= context_.ntexture)
+      throw std::invalid_argument(
+          "stereo camera: ground_texture: the model has no 2D texture named asphalt");
+    const int size = std::min(model->tex_width[id], model->tex_height[id]);
+    const std::vector<uint8_t> rgb = asphalt_texture(size, config.noise_seed);
+    glBindTexture(GL_TEXTURE_2D, context_.texture[id]);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB, size, size, 0, GL_RGB, GL_UNSIGNED_BYTE, rgb.data());
+    glGenerateMipmap(GL_TEXTURE_2D);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
+    asphalt_texture_ = id;
+    asphalt_period_m_ = size * kAsphaltTexelM;
+  }
+
   // the abstract scene: the car's world plus room for every cone's geoms
   cones_ = std::make_unique<ConeSceneWriter>(model, track.cones, ground);
   mjv_defaultScene(&scene_);
   mjv_makeScene(model, &scene_,
-                model->ngeom + kSpareGeoms + cones_->geom_count() + scenery_geom_count(scenery));
+                model->ngeom + kSpareGeoms + cones_->geom_count() + scenery_geom_count(scenery) +
+                    // the shadows: one per solid, two per cone
+                    (config.sun_diffuse > 0.0
+                         ? model->ngeom + 2 * cones_->geom_count() + scenery_geom_count(scenery)
+                         : 0));
   scene_.flags[mjRND_SHADOW] = 0;
   scene_.flags[mjRND_REFLECTION] = 0;
   // the sky is painted after reading back (llvmpipe's cube-mapped skybox costs 3 ms a frame)
@@ -278,6 +372,8 @@ void StereoCamera::render(const mjData* data, const core::Pose3& vehicle_in_trac
   dropped_geoms_ += cones_->append(&scene_, is_knocked, rig_view(labels.left_in_track));
   dropped_geoms_ += append_scenery(&scene_, scenery_, rig_view(labels.left_in_track), ground_);
   simplify_ground(0.5 * (labels.left_in_track.position + labels.right_in_track.position));
+  shadow_first_ = scene_.ngeom;
+  add_sun(labels.left_in_track);
 
   // one pass per eye; depth only for the left one and only on request
   render_eye(labels.left_in_track, frame.left, with_depth ? &frame.left_depth_m : nullptr);
@@ -305,6 +401,9 @@ void StereoCamera::render_segmentation(SegmentationImage& out) {
   // what each scene geom shows, and its segmentation id: MuJoCo paints a geom in the colour
   // segid + 1 (red the low byte) with lighting, textures and blending off
   const int ground_geom = mj_name2id(model_, mjOBJ_GEOM, "ground");
+  // (the shadows are no objects)
+  const int with_shadows = scene_.ngeom;
+  scene_.ngeom = shadow_first_;
   std::vector<int32_t> shows(static_cast<size_t>(scene_.ngeom));
   std::vector<int> saved_segid(static_cast<size_t>(scene_.ngeom));
   for (int i = 0; i < scene_.ngeom; ++i) {
@@ -331,14 +430,16 @@ void StereoCamera::render_segmentation(SegmentationImage& out) {
   glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba_scratch_.data());
   scene_.flags[mjRND_SEGMENT] = saved_segment;
   scene_.flags[mjRND_IDCOLOR] = saved_idcolor;
-  for (int i = 0; i < scene_.ngeom; ++i) scene_.geoms[i].segid = saved_segid[static_cast<size_t>(i)];
+  for (int i = 0; i < scene_.ngeom; ++i)
+    scene_.geoms[i].segid = saved_segid[static_cast<size_t>(i)];
+  scene_.ngeom = with_shadows;
 
   // decode, flipping rows to top to bottom; colour 0 (the cleared background) is the sky
   auto decode = [&](int r, int c) {
     const uint8_t* src = rgba_scratch_.data() + 4 * (static_cast<size_t>(h - 1 - r) * w + c);
     const int id = (src[0] | (src[1] << 8) | (src[2] << 16)) - 1;
-    return id >= 0 && id < scene_.ngeom ? shows[static_cast<size_t>(id)]
-                                        : SegmentationImage::kNothing;
+    return id >= 0 && id < static_cast<int>(shows.size()) ? shows[static_cast<size_t>(id)]
+                                                          : SegmentationImage::kNothing;
   };
   out.width_px = config_.width_px;
   out.height_px = config_.height_px;
@@ -388,6 +489,118 @@ void StereoCamera::simplify_ground(const Eigen::Vector3d& centre) {
     g.pos[0] = static_cast<float>(centre.x());
     g.pos[1] = static_cast<float>(centre.y());
     std::copy(std::begin(kAsphalt), std::end(kAsphalt), g.rgba);
+    if (asphalt_texture_ >= 0) {
+      // the texture in white light, repeating every period across the square, which stands on
+      // a whole number of periods so that the grain stays where it is on the ground
+      g.texid = asphalt_texture_;
+      g.texuniform = 1;
+      const double period = asphalt_period_m_;
+      const double half = std::ceil(kGroundHalfSizeInFar * config_.far_m / period) * period;
+      g.size[0] = g.size[1] = static_cast<float>(half);
+      g.pos[0] = static_cast<float>(std::round(centre.x() / period) * period);
+      g.pos[1] = static_cast<float>(std::round(centre.y() / period) * period);
+      g.texrepeat[0] = g.texrepeat[1] = static_cast<float>(2.0 / period);
+      std::fill(g.rgba, g.rgba + 3, 1.f);
+    }
+  }
+}
+
+void StereoCamera::add_sun(const core::Pose3& eye_in_track) {
+  const double strength = config_.sun_diffuse;
+  if (!(strength > 0.0) || scene_.nlight >= mjMAXLIGHT) return;
+  // the direction the sunlight travels
+  const double elevation = config_.sun_elevation_deg * kDegToRad;
+  const double azimuth = config_.sun_azimuth_deg * kDegToRad;
+  const Eigen::Vector3d d(-std::cos(elevation) * std::cos(azimuth),
+                          -std::cos(elevation) * std::sin(azimuth), -std::sin(elevation));
+  mjvLight& sun = scene_.lights[scene_.nlight++];
+  sun = mjvLight{};
+  for (int i = 0; i < 3; ++i) {
+    sun.dir[i] = static_cast<float>(d[i]);
+    sun.pos[i] = static_cast<float>(eye_in_track.position[i] - 100.0 * d[i]);
+    sun.diffuse[i] = static_cast<float>(strength);
+  }
+  sun.attenuation[0] = 1.f;
+  sun.cutoff = 180.f;
+  sun.directional = 1;
+  if (!(config_.shadow_strength > 0.0)) return;
+
+  // the shadows: every solid the scene holds (cones, scenery, the car), flattened along the light
+  // onto the ground under it, a millimetre or two above it, drawn over the ground in black with
+  // the share of the light the sun gives there as its opacity. A shadow falls on the ground only
+  // (not on other objects); the sunlit and shaded sides of the solids themselves come from the
+  // light. Faces towards the sun come out facing up, so face culling draws each shadow once.
+  const Eigen::Vector3d forward = eye_in_track.orientation * Eigen::Vector3d::UnitZ();
+  const ViewVolume view = rig_view(eye_in_track);
+  // a shadow reaches at most this far per metre of its caster's size
+  const double reach = 1.0 + 1.0 / std::tan(elevation);
+  const int solids = scene_.ngeom;
+  // each solid, a cone as the boxes that stand in for it (a few faces instead of its mesh's)
+  std::vector<mjvGeom> casters;
+  for (int i = 0; i < solids; ++i) {
+    const mjvGeom& g = scene_.geoms[i];
+    if (g.type == mjGEOM_PLANE || g.type == mjGEOM_HFIELD || g.rgba[3] < 0.995f) continue;
+    const std::vector<ConeSceneWriter::Box> boxes = cones_->shadow_boxes(g);
+    if (boxes.empty()) {
+      casters.push_back(g);
+      continue;
+    }
+    for (const ConeSceneWriter::Box& box : boxes) {
+      mjvGeom& c = casters.emplace_back(g);
+      c.type = mjGEOM_BOX;
+      c.dataid = -1;
+      for (int r = 0; r < 3; ++r) {
+        c.pos[r] = static_cast<float>(box.centre[r]);
+        c.size[r] = static_cast<float>(box.half[r]);
+        for (int k = 0; k < 3; ++k) c.mat[3 * r + k] = r == k ? 1.f : 0.f;
+      }
+    }
+  }
+  for (const mjvGeom& g : casters) {
+    if (scene_.ngeom >= scene_.maxgeom) {
+      ++dropped_geoms_;
+      continue;
+    }
+    const Eigen::Vector3d pos(g.pos[0], g.pos[1], g.pos[2]);
+    const Eigen::Vector3d q(pos.x(), pos.y(), ground_.height(pos.x(), pos.y()));
+    const Eigen::Vector3d n = ground_.normal(pos.x(), pos.y());
+    const double dn = d.dot(n);
+    if (!(dn < -0.05)) continue;
+    // p -> p - ((p - q).n / d.n) d, keeping a thousandth of the height above the ground
+    constexpr double kThickness = 1e-3, kLift = 2e-3;
+    const Eigen::Matrix3d a =
+        Eigen::Matrix3d::Identity() - d * n.transpose() / dn + kThickness * n * n.transpose();
+    const Eigen::Vector3d b = (q.dot(n) / dn) * d - kThickness * q.dot(n) * n + kLift * n;
+    Eigen::Matrix3d m;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) m(r, c) = g.mat[3 * r + c];
+    const Eigen::Matrix3d am = a * m;
+    const Eigen::Vector3d ap = a * pos + b;
+    // (one out of view is not drawn: the caster's size from its frame's scale and its size,
+    // a mesh's (the cones) from its unit scale)
+    const double size =
+        g.type == mjGEOM_MESH
+            ? 1.0
+            : std::sqrt(g.size[0] * g.size[0] + g.size[1] * g.size[1] + g.size[2] * g.size[2]);
+    if (!view.may_see(ap, reach * size)) continue;
+    const double lit_sun = strength * -dn;
+    const double lit =
+        config_.light_ambient + config_.light_diffuse * std::max(0.0, -forward.dot(n)) + lit_sun;
+    mjvGeom& shadow = scene_.geoms[scene_.ngeom++];
+    shadow = g;
+    for (int r = 0; r < 3; ++r) {
+      shadow.pos[r] = static_cast<float>(ap[r]);
+      for (int c = 0; c < 3; ++c) shadow.mat[3 * r + c] = static_cast<float>(am(r, c));
+    }
+    shadow.rgba[0] = shadow.rgba[1] = shadow.rgba[2] = 0.f;
+    // (MuJoCo blends a transparent geom twice, front to back and back to front: each time by
+    // the square root of the share)
+    shadow.rgba[3] =
+        static_cast<float>(1.0 - std::sqrt(1.0 - config_.shadow_strength * lit_sun / lit));
+    shadow.texid = -1;
+    shadow.texcoord = 0;
+    shadow.emission = shadow.specular = shadow.shininess = shadow.reflectance = 0.f;
+    shadow.label[0] = '\0';
   }
 }
 

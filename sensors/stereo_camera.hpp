@@ -24,8 +24,10 @@ namespace conesim::sensors {
 /// The lens a scenario's camera has with `sensors.realism: on` (k1, k2, p1, p2, k3): a
 /// low-distortion machine-vision lens of about 70 degrees as FS teams calibrate them (barrel,
 /// 7 % at the image's corner; tangential terms of a slightly tilted sensor).
-inline constexpr std::array<double, 5> kTypicalLensDistortion = {-0.12, 0.03, 0.0005, -0.0003,
-                                                                 0.0};
+/// The sun's diffuse intensity with sensors.realism on: a clear day, its light on a level
+/// surface about as strong as the headlight's and the ambient light together.
+inline constexpr double kTypicalSunDiffuse = 0.5;
+inline constexpr std::array<double, 5> kTypicalLensDistortion = {-0.12, 0.03, 0.0005, -0.0003, 0.0};
 
 /// Configuration of the stereo rig. Defaults: a main-hoop pair looking ahead, slightly down.
 struct StereoCameraConfig {
@@ -59,12 +61,29 @@ struct StereoCameraConfig {
   /// cv::undistortPoints or cv::initUndistortRectifyMap with them gives the pinhole view back.
   /// All zero: a pinhole camera.
   std::array<double, 5> distortion{};
+  /// Asphalt with a grain (fine speckle, blotches a few decimetres across and darker patches of
+  /// a metre or two, drawn from the noise seed, fixed to the ground) instead of one flat grey
+  /// with the same mean.
+  bool ground_texture = false;
+  /// The sun: a directional light from this elevation above the horizon and azimuth (degrees,
+  /// anticlockwise from the track's x axis, the direction the light comes from) with this
+  /// diffuse intensity, and the shadows it casts on the ground (every cone, object and the car
+  /// cast theirs, projected along the light). An intensity of 0: no sun, the headlight alone.
+  double sun_elevation_deg = 45.0;
+  double sun_azimuth_deg = 135.0;
+  double sun_diffuse = 0.0;
+  /// How dark a shadow is: the share of the sun's light it takes away from the ground (1: all).
+  double shadow_strength = 1.0;
   /// Seed of the images' noise (a run gives its scenario's seed).
   uint64_t noise_seed = 0;
 
   /// Empty when the configuration is usable, otherwise a message that starts with the bad key.
   std::string validate() const;
 };
+
+/// The asphalt texture a camera with ground_texture draws: size x size RGB texels (rows in
+/// order), 8 mm each, tiling without a seam, its mean the flat ground's colour; from the seed.
+std::vector<uint8_t> asphalt_texture(int size, uint64_t seed);
 
 /// Intrinsics of a camera with this configuration (square pixels, principal point in the image
 /// centre; pixel centres at integer coordinates, as in OpenCV), with its lens distortion.
@@ -138,6 +157,9 @@ class StereoCamera {
  private:
   // replaces MuJoCo's infinite ground plane by a plain square of asphalt around the rig
   void simplify_ground(const Eigen::Vector3d& centre);
+  // the sun as a directional light, and the shadows it casts on the ground (scene geoms from
+  // shadow_first_ on)
+  void add_sun(const core::Pose3& eye_in_track);
   // poses both GL cameras (and the headlight) at an eye, with the configured frustum
   void aim(const core::Pose3& eye_in_track);
   // renders the scene from one eye into an RGB image, and the depth buffer if depth_m is given
@@ -190,6 +212,11 @@ class StereoCamera {
   mjvCamera free_camera_;
   mjvPerturb perturb_;
   std::vector<unsigned char> rgba_scratch_;
+  // the model's asphalt texture (when the config asks for one), and the size in metres over
+  // which it repeats
+  int shadow_first_ = 0;
+  int asphalt_texture_ = -1;
+  double asphalt_period_m_ = 0.0;
   ImageResponseFilter response_filter_;
   // 1 / length of each pixel's ray (x, y, 1) in the optical frame, rows top to bottom
   std::vector<float> inverse_ray_length_;

@@ -90,13 +90,18 @@ nlohmann::json bench_sensors(int repeats, bool closed_loop) {
     out["lidar_scan_ms_spread" + suffix] = spread(ms);
   }
 
-  // stereo: two 640x480 frames of the car at the start, with the sensor's noise and lens (the
-  // default) and without them (`sensors.realism: off`)
+  // stereo: two 640x480 frames of the car at the start, with the sensor's noise, lens, the
+  // asphalt's grain and the sun with its shadows (the default) and without them
+  // (`sensors.realism: off`)
   for (const bool realism : {true, false}) {
     VehicleSim car(vehicle_models::VehicleParams{}, track.start.compose({-2.25, 0.0, 0.0}));
     sensors::StereoCameraConfig config;
     if (!realism) config.response.full_well_e = 0.0;
-    if (realism) config.distortion = sensors::kTypicalLensDistortion;
+    if (realism) {
+      config.distortion = sensors::kTypicalLensDistortion;
+      config.ground_texture = true;
+      config.sun_diffuse = sensors::kTypicalSunDiffuse;
+    }
     sensors::StereoCamera camera(config, car.model(), track);
     core::StereoFrame frame;
     core::StereoLabels labels;

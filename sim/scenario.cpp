@@ -950,6 +950,8 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   bool lidar_disabled = false;
   bool camera_noise_given = false;
   bool lens_given = false;
+  bool texture_given = false;
+  bool sun_given = false;
   bool camera_disabled = false;
   // the stack chosen under autonomy: (over the top-level perception: and slam:)
   AutonomyChoice autonomy;
@@ -1129,36 +1131,34 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
               {"lidar",
                [&](const YAML::Node& v) {
                  const Where c{&context, "sensors.lidar"};
-                 read_section(v, c,
-                              {{"enabled",
-                                [&](const YAML::Node& x) {
-                                  ss.lidar_enabled = read_bool(x, c, "enabled");
-                                  lidar_disabled = !ss.lidar_enabled;
-                                }},
-                               {"model",
-                                [&](const YAML::Node& x) {
-                                  ss.lidar_model = read_string(x, c, "model");
-                                  if (!sensors::lidar_preset(ss.lidar_model))
-                                    c.fail(x, "model",
-                                           "expected vlp16, "
-                                           "vlp32c or os1-64");
-                                }},
-                               number("latency_s", ss.lidar_latency_s, c),
-                               optional_number("range_noise_sigma_m",
-                                               ss.lidar_range_noise_sigma_m, c),
-                               optional_number("range_noise_growth", ss.lidar_range_noise_growth,
-                                               c),
-                               optional_number("detection_range_10pct_m",
-                                               ss.lidar_detection_range_10pct_m, c),
-                               optional_number("beam_divergence_mrad",
-                                               ss.lidar_beam_divergence_mrad, c),
-                               {"mount", [&](const YAML::Node& x) {
-                                  ss.lidar_mount = read_string(x, c, "mount");
-                                  if (!sensors::lidar_mount_preset(ss.lidar_mount))
-                                    c.fail(x, "mount",
-                                           "expected front_wing "
-                                           "or main_hoop");
-                                }}});
+                 read_section(
+                     v, c,
+                     {{"enabled",
+                       [&](const YAML::Node& x) {
+                         ss.lidar_enabled = read_bool(x, c, "enabled");
+                         lidar_disabled = !ss.lidar_enabled;
+                       }},
+                      {"model",
+                       [&](const YAML::Node& x) {
+                         ss.lidar_model = read_string(x, c, "model");
+                         if (!sensors::lidar_preset(ss.lidar_model))
+                           c.fail(x, "model",
+                                  "expected vlp16, "
+                                  "vlp32c or os1-64");
+                       }},
+                      number("latency_s", ss.lidar_latency_s, c),
+                      optional_number("range_noise_sigma_m", ss.lidar_range_noise_sigma_m, c),
+                      optional_number("range_noise_growth", ss.lidar_range_noise_growth, c),
+                      optional_number("detection_range_10pct_m", ss.lidar_detection_range_10pct_m,
+                                      c),
+                      optional_number("beam_divergence_mrad", ss.lidar_beam_divergence_mrad, c),
+                      {"mount", [&](const YAML::Node& x) {
+                         ss.lidar_mount = read_string(x, c, "mount");
+                         if (!sensors::lidar_mount_preset(ss.lidar_mount))
+                           c.fail(x, "mount",
+                                  "expected front_wing "
+                                  "or main_hoop");
+                       }}});
                }},
               {"camera", [&](const YAML::Node& v) {
                  const Where c{&context, "sensors.camera"};
@@ -1200,6 +1200,23 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                          for (size_t i = 0; i < 5; ++i)
                            cam.distortion[i] = read_number(x[i], c, "distortion");
                          lens_given = true;
+                       }},
+                      {"ground_texture",
+                       [&](const YAML::Node& x) {
+                         cam.ground_texture = read_bool(x, c, "ground_texture");
+                         texture_given = true;
+                       }},
+                      {"sun", [&](const YAML::Node& x) {
+                         const Where sun{&context, "sensors.camera.sun"};
+                         read_section(x, sun,
+                                      {number("elevation_deg", cam.sun_elevation_deg, sun),
+                                       number("azimuth_deg", cam.sun_azimuth_deg, sun),
+                                       {"diffuse",
+                                        [&](const YAML::Node& d) {
+                                          cam.sun_diffuse = read_number(d, sun, "diffuse");
+                                          sun_given = true;
+                                        }},
+                                       number("shadow_strength", cam.shadow_strength, sun)});
                        }}});
                }}});
        }},
@@ -1237,8 +1254,12 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   // with it the lens distorts as a common machine-vision lens does (unless another is given)
   if (!s.sensors.realism && !camera_noise_given) s.sensors.camera.response.full_well_e = 0.0;
   if (!lens_given)
-    s.sensors.camera.distortion = s.sensors.realism ? sensors::kTypicalLensDistortion
-                                                    : std::array<double, 5>{};
+    s.sensors.camera.distortion =
+        s.sensors.realism ? sensors::kTypicalLensDistortion : std::array<double, 5>{};
+  // and the asphalt has its grain and the sun shines, casting shadows
+  if (!texture_given) s.sensors.camera.ground_texture = s.sensors.realism;
+  if (!sun_given)
+    s.sensors.camera.sun_diffuse = s.sensors.realism ? sensors::kTypicalSunDiffuse : 0.0;
   if (s.randomise) randomise_look(s);
 
   // check the values as a whole
@@ -1478,15 +1499,18 @@ void randomise_look(Scenario& s) {
   cam.light_diffuse = draw("camera_light_diffuse", 0.3, 0.8, 100);
   cam.response.exposure_ev = draw("camera_exposure_ev", -1.0, 1.0, 100);
   // a full well from 3000 to 30000 electrons, even in its logarithm
-  cam.response.full_well_e = std::round(std::exp(core::uniform(rng, std::log(3000.0),
-                                                               std::log(30000.0))) /
-                                        10.0) *
-                             10.0;
+  cam.response.full_well_e =
+      std::round(std::exp(core::uniform(rng, std::log(3000.0), std::log(30000.0))) / 10.0) * 10.0;
   s.look["camera_full_well_e"] = cam.response.full_well_e;
   cam.response.read_noise_e = draw("camera_read_noise_e", 5.0, 30.0, 10);
   s.sensors.lidar_range_noise_scale = draw("lidar_range_noise_scale", 0.8, 1.5, 100);
   s.sensors.lidar_detection_range_scale = draw("lidar_detection_range_scale", 0.8, 1.25, 100);
   s.sensors.lidar_ground_reflectivity = draw("lidar_ground_reflectivity", 0.06, 0.2, 200);
+  // the sun: anywhere round the sky, from a low morning sun to noon, hazy to clear (the
+  // asphalt's grain is drawn from the run's seed already)
+  cam.sun_azimuth_deg = draw("camera_sun_azimuth_deg", 0.0, 360.0, 1);
+  cam.sun_elevation_deg = draw("camera_sun_elevation_deg", 15.0, 75.0, 1);
+  cam.sun_diffuse = draw("camera_sun_diffuse", 0.2, 0.7, 100);
 }
 
 sensors::LidarConfig SensorSettings::lidar_config() const {

@@ -3,13 +3,12 @@
 #include <gtest/gtest.h>
 #include <zlib.h>
 
-#include <opencv2/calib3d.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
 #include <numbers>
+#include <opencv2/calib3d.hpp>
 #include <optional>
 #include <set>
 #include <utility>
@@ -293,8 +292,8 @@ TEST(StereoCamera, GroundLooksLikeAsphaltAndTheSkyIsAbove) {
 
 // The segmentation render names the object of every pixel, in register with the image: each
 // cone's band centre carries its id, the barrier's red half its scenery code, the ground and
-// the sky theirs; every blue pixel of the image below the sky belongs to a blue cone and most of a blue
-// cone's pixels are blue or its white stripe; the frame drawn next is unchanged by it
+// the sky theirs; every blue pixel of the image below the sky belongs to a blue cone and most of a
+// blue cone's pixels are blue or its white stripe; the frame drawn next is unchanged by it
 TEST(StereoCamera, SegmentationNamesTheObjectOfEveryPixel) {
   const core::Pose2 pose{15.0, 4.5, 0.0};
   const tracks::SceneryObject barrier =
@@ -367,8 +366,10 @@ TEST(StereoCamera, OpenCvUndoesTheLensWithThePublishedIntrinsics) {
   int id = 0;
   for (const double x : {3.0, 4.5, 6.5, 9.0, 13.0})
     for (const double side : {-0.85, -0.55, -0.25, 0.0, 0.3, 0.6, 0.88})
-      track.cones.push_back({id++, id % 2 ? ConeClass::kBlue : ConeClass::kYellow,
-                             {pinhole.mount_x_m + x, side * x * tan_half}, std::nullopt});
+      track.cones.push_back({id++,
+                             id % 2 ? ConeClass::kBlue : ConeClass::kYellow,
+                             {pinhole.mount_x_m + x, side * x * tan_half},
+                             std::nullopt});
   sim::VehicleSim car(vehicle_models::VehicleParams{}, {});
   StereoCamera straight(pinhole, car.model(), track);
   StereoCamera curved(lens, car.model(), track);
@@ -406,8 +407,8 @@ TEST(StereoCamera, OpenCvUndoesTheLensWithThePublishedIntrinsics) {
   std::vector<cv::Point2d> seen;
   std::vector<Blob> expected;
   for (const auto& [cone, blob] : b)
-    if (const auto it = a.find(cone); it != a.end() && !blob.edge && !it->second.edge &&
-                                      blob.n >= 60 && it->second.n >= 60) {
+    if (const auto it = a.find(cone);
+        it != a.end() && !blob.edge && !it->second.edge && blob.n >= 60 && it->second.n >= 60) {
       seen.emplace_back(blob.u, blob.v);
       expected.push_back(it->second);
     }
@@ -425,9 +426,10 @@ TEST(StereoCamera, OpenCvUndoesTheLensWithThePublishedIntrinsics) {
   for (size_t i = 0; i < seen.size(); ++i)
     errors.push_back(std::hypot(undone[i].x - expected[i].u, undone[i].y - expected[i].v));
   std::sort(errors.begin(), errors.end());
-  std::printf("[lens] %zu cones: the lens moved them up to %.1f px; undone to within %.3f px "
-              "(median %.3f px)\n",
-              seen.size(), moved, worst, errors[errors.size() / 2]);
+  std::printf(
+      "[lens] %zu cones: the lens moved them up to %.1f px; undone to within %.3f px "
+      "(median %.3f px)\n",
+      seen.size(), moved, worst, errors[errors.size() / 2]);
   EXPECT_LE(worst, 0.5);
   EXPECT_GE(moved, 5.0);
   // the image is drawn through the same lens as the segmentation: its blue pixels (but the
@@ -483,9 +485,9 @@ TEST(StereoCamera, TheSensorsNoiseIsOnBothImages) {
     int n = 0, far_off = 0;
     for (size_t i = 0; i < a.rgb.size(); ++i) {
       if (b.rgb[i] < 8 || b.rgb[i] > 247) continue;
-      const double sigma = std::sqrt(std::pow(quiet.response.noise_sigma(b.rgb[i]), 2) +
-                                     std::pow(StereoCameraConfig{}.response.noise_sigma(b.rgb[i]), 2) +
-                                     1.0 / 12.0);
+      const double sigma =
+          std::sqrt(std::pow(quiet.response.noise_sigma(b.rgb[i]), 2) +
+                    std::pow(StereoCameraConfig{}.response.noise_sigma(b.rgb[i]), 2) + 1.0 / 12.0);
       const double z = (static_cast<double>(a.rgb[i]) - b.rgb[i]) / sigma;
       squares += z * z;
       far_off += std::abs(z) > 6.0;
@@ -531,7 +533,9 @@ TEST(StereoCamera, ConfigurationErrorsNameTheKey) {
   EXPECT_EQ(error([](auto& c) { c.baseline_m = -0.1; }).rfind("baseline_m", 0), 0u);
   EXPECT_EQ(error([](auto& c) { c.far_m = 0.5; }).rfind("far_m", 0), 0u);
   // a lens whose radial terms fold the image over before its corner, or a NaN term
-  EXPECT_EQ(error([](auto& c) { c.distortion = {-0.9, 0.0, 0.0, 0.0, 0.0}; }).rfind("distortion", 0),
+  EXPECT_EQ(error([](auto& c) {
+              c.distortion = {-0.9, 0.0, 0.0, 0.0, 0.0};
+            }).rfind("distortion", 0),
             0u);
   EXPECT_EQ(error([](auto& c) { c.distortion[1] = std::nan(""); }).rfind("distortion: k2", 0), 0u);
   EXPECT_EQ(error([](auto& c) { c.distortion = kTypicalLensDistortion; }), "");
@@ -542,6 +546,128 @@ TEST(StereoCamera, ConfigurationErrorsNameTheKey) {
   const tracks::Track track = test_track(huge);
   const sim::VehicleSim car(vehicle_models::VehicleParams{}, {});
   EXPECT_THROW(StereoCamera(huge, car.model(), track), std::invalid_argument);
+}
+
+namespace texture_and_sun {
+
+// the left image of a camera on a car at rest at (x, 0) heading along x, on a track without
+// cones, the sensor's noise off
+core::RgbImage left_image(const StereoCameraConfig& config, double x,
+                          const std::vector<tracks::SceneryObject>& scenery = {},
+                          const tracks::Track& track = tracks::Track{}) {
+  const sim::VehicleSim car(vehicle_models::VehicleParams{}, {x, 0.0, 0.0});
+  StereoCamera camera(config, car.model(), track, scenery);
+  core::StereoFrame frame;
+  core::StereoLabels labels;
+  camera.render(car.data(), car.vehicle_pose3(), 0, {}, false, frame, labels);
+  return frame.left;
+}
+
+// mean absolute difference of two images over rows [from, to)
+double mean_difference(const core::RgbImage& a, const core::RgbImage& b, int from, int to) {
+  double sum = 0.0;
+  const size_t begin = 3 * static_cast<size_t>(from) * a.width_px;
+  const size_t end = 3 * static_cast<size_t>(to) * a.width_px;
+  for (size_t i = begin; i < end; ++i) sum += std::abs(int(a.rgb[i]) - int(b.rgb[i]));
+  return sum / static_cast<double>(end - begin);
+}
+
+// the grain of an image over rows [from, to): the mean absolute difference of horizontally
+// neighbouring levels (a smooth shading has none)
+double grain_of(const core::RgbImage& image, int from, int to) {
+  double sum = 0.0;
+  const size_t begin = 3 * static_cast<size_t>(from) * image.width_px;
+  const size_t end = 3 * static_cast<size_t>(to) * image.width_px;
+  for (size_t i = begin; i + 3 < end; ++i)
+    sum += std::abs(int(image.rgb[i + 3]) - int(image.rgb[i]));
+  return sum / static_cast<double>(end - begin);
+}
+
+}  // namespace texture_and_sun
+
+// The asphalt's texture (issue 17): its mean is the flat ground's colour; the image of the
+// ground has a grain the flat ground has not; the grain is fixed to the ground: a car one
+// texture period (512 texels of 8 mm) further on sees the same ground, half a period further
+// on it does not.
+TEST(StereoCamera, TheAsphaltHasAGrainFixedToTheGround) {
+  using namespace texture_and_sun;
+  const std::vector<uint8_t> texels = asphalt_texture(512, 7);
+  double mean[3] = {0.0, 0.0, 0.0};
+  for (size_t i = 0; i < texels.size(); ++i) mean[i % 3] += texels[i];
+  const double flat_colour[3] = {0.30 * 255, 0.30 * 255, 0.32 * 255};
+  for (int c = 0; c < 3; ++c)
+    EXPECT_NEAR(mean[c] / static_cast<double>(texels.size() / 3), flat_colour[c],
+                0.03 * flat_colour[c]);
+  EXPECT_EQ(texels, asphalt_texture(512, 7));
+  EXPECT_NE(texels, asphalt_texture(512, 8));
+
+  StereoCameraConfig plain;
+  plain.response.full_well_e = 0.0;
+  StereoCameraConfig grained = plain;
+  grained.ground_texture = true;
+  // the ground 3 to 6 m ahead, above the car's nose
+  const int from = 330, to = 420;
+  const core::RgbImage flat_ground = left_image(plain, 0.0), at = left_image(grained, 0.0),
+                       period = left_image(grained, 512 * 0.008),
+                       half = left_image(grained, 256 * 0.008);
+  const double flat = grain_of(flat_ground, from, to), grain = grain_of(at, from, to);
+  const double same = mean_difference(at, period, from, to);
+  const double moved = mean_difference(at, half, from, to);
+  EXPECT_LT(flat, 0.3);
+  EXPECT_GT(grain, 3.0 * std::max(flat, 0.2)) << flat;
+  EXPECT_LT(same, 0.5) << "the grain moved with the car";
+  EXPECT_GT(moved, 5.0 * std::max(same, 0.2)) << same;
+}
+
+// The sun (issue 17): a cone's shadow falls on the ground away from the sun, as dark as the
+// sun's share of the light there; the ground on the sun's side of the cone is as bright as
+// anywhere; no sun, no shadow.
+TEST(StereoCamera, TheSunCastsAConesShadowOnTheGround) {
+  using namespace texture_and_sun;
+  StereoCameraConfig config;
+  config.response.full_well_e = 0.0;
+  config.sun_diffuse = 0.5;
+  config.sun_elevation_deg = 30.0;
+  config.sun_azimuth_deg = 90.0;  // from the left: shadows fall to the right (-y)
+  tracks::Track track;
+  track.cones = {{1, ConeClass::kOrangeBig, {8.0, 0.0}, std::nullopt}};
+  const sim::VehicleSim car(vehicle_models::VehicleParams{}, {0.0, 0.0, 0.0});
+  StereoCamera camera(config, car.model(), track);
+  core::StereoFrame frame;
+  core::StereoLabels labels;
+  camera.render(car.data(), car.vehicle_pose3(), 0, {}, false, frame, labels);
+  const auto pixel_of = [&](const Vector3d& p) {
+    const Vector3d q = labels.left_in_track.inverse().transform(p);
+    const core::CameraIntrinsics& k = frame.intrinsics;
+    Vector2d uv(k.fx * q.x() / q.z() + k.cx, k.fy * q.y() / q.z() + k.cy);
+    // (through the default lens: none here)
+    return uv;
+  };
+  const auto grey = [&](const core::RgbImage& image, const Vector3d& p) {
+    const Vector2d uv = pixel_of(p);
+    const Rgb c =
+        pixel(image, static_cast<int>(std::lround(uv.x())), static_cast<int>(std::lround(uv.y())));
+    return (c.r + c.g + c.b) / 3.0;
+  };
+  // the big cone is 0.505 m tall: its shadow reaches 0.87 m to its right; half of it lies
+  // 0.45 m to the right, the sun's side 0.45 m to the left
+  const Vector3d shaded(8.0, -0.45, 0.0), sunny(8.0, 0.45, 0.0), open(8.0, -1.4, 0.0);
+  const double in_shadow = grey(frame.left, shaded), beside = grey(frame.left, sunny),
+               away = grey(frame.left, open);
+  // the light on level ground: ambient, the headlight along the optical axis (its cosine on
+  // the ground is the axis's dip) and the sun; the shadow takes the sun's
+  const Vector3d forward = labels.left_in_track.orientation * Vector3d::UnitZ();
+  const double sun = 0.5 * std::sin(30.0 * std::numbers::pi / 180.0);
+  const double lit =
+      config.light_ambient + config.light_diffuse * std::max(0.0, -forward.z()) + sun;
+  EXPECT_NEAR(beside, away, 0.03 * away);
+  EXPECT_NEAR(in_shadow / away, 1.0 - sun / lit, 0.05) << in_shadow << " " << away;
+
+  // no sun: no shadow
+  config.sun_diffuse = 0.0;
+  StereoCamera unlit(config, car.model(), track);
+  unlit.render(car.data(), car.vehicle_pose3(), 0, {}, false, frame, labels);
+  EXPECT_NEAR(grey(frame.left, shaded), grey(frame.left, open), 2.0);
 }
 
 }  // namespace

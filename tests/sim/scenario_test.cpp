@@ -142,12 +142,34 @@ TEST_F(ScenarioFile, SensorRealismIsAScenarioKey) {
   // the camera: noise on with realism, off without it unless asked for
   EXPECT_GT(on.sensors.camera.response.full_well_e, 0.0);
   EXPECT_EQ(off.sensors.camera.response.full_well_e, 0.0);
-  const Scenario asked = load_scenario(write(
-      head + "sensors: {realism: off, camera: {full_well_e: 5000, exposure_ev: -0.5, gamma: 2}}\n"));
+  const Scenario asked = load_scenario(
+      write(head +
+            "sensors: {realism: off, camera: {full_well_e: 5000, exposure_ev: -0.5, gamma: 2}}\n"));
   EXPECT_EQ(asked.sensors.camera.response.full_well_e, 5000.0);
   EXPECT_EQ(asked.sensors.camera.response.exposure_ev, -0.5);
   EXPECT_EQ(asked.sensors.camera.response.gamma, 2.0);
-  EXPECT_NE(error_of(head + "sensors: {camera: {gamma: 0}}\n").find("sensors.camera.gamma: expected"),
+  EXPECT_NE(
+      error_of(head + "sensors: {camera: {gamma: 0}}\n").find("sensors.camera.gamma: expected"),
+      std::string::npos);
+  // the asphalt's grain and the sun: on with realism, off without it unless asked for
+  EXPECT_TRUE(on.sensors.camera.ground_texture);
+  EXPECT_EQ(on.sensors.camera.sun_diffuse, sensors::kTypicalSunDiffuse);
+  EXPECT_FALSE(off.sensors.camera.ground_texture);
+  EXPECT_EQ(off.sensors.camera.sun_diffuse, 0.0);
+  const Scenario sunny = load_scenario(write(
+      head +
+      "sensors: {realism: off, camera: {ground_texture: on,\n"
+      "  sun: {elevation_deg: 20, azimuth_deg: 270, diffuse: 0.6, shadow_strength: 0.8}}}\n"));
+  EXPECT_TRUE(sunny.sensors.camera.ground_texture);
+  EXPECT_EQ(sunny.sensors.camera.sun_elevation_deg, 20.0);
+  EXPECT_EQ(sunny.sensors.camera.sun_azimuth_deg, 270.0);
+  EXPECT_EQ(sunny.sensors.camera.sun_diffuse, 0.6);
+  EXPECT_EQ(sunny.sensors.camera.shadow_strength, 0.8);
+  EXPECT_NE(error_of(head + "sensors: {camera: {sun: {elevation_deg: 2}}}\n")
+                .find("sun.elevation_deg: must be 5-90"),
+            std::string::npos);
+  EXPECT_NE(error_of(head + "sensors: {camera: {sun: {height: 2}}}\n")
+                .find("sensors.camera.sun.height: unknown key"),
             std::string::npos);
 }
 
@@ -160,7 +182,8 @@ TEST_F(ScenarioFile, RandomisedLookComesFromTheSeed) {
   const Scenario c = load_scenario(write(text), {"seed=6"});
   EXPECT_EQ(a.look, b.look);
   EXPECT_NE(a.look, c.look);
-  ASSERT_EQ(a.look.size(), 8u);
+  ASSERT_EQ(a.look.size(), 11u);
+  EXPECT_EQ(a.look.at("camera_sun_azimuth_deg"), a.sensors.camera.sun_azimuth_deg);
   EXPECT_EQ(a.look.at("camera_exposure_ev"), a.sensors.camera.response.exposure_ev);
   EXPECT_EQ(a.look.at("camera_full_well_e"), a.sensors.camera.response.full_well_e);
   EXPECT_EQ(a.look.at("camera_light_diffuse"), a.sensors.camera.light_diffuse);
