@@ -1,6 +1,7 @@
 #include "sensors/stereo_camera.hpp"
 
 #include "core/rng.hpp"
+#include "vehicle_models/mjcf_builder.hpp"
 
 #define GL_GLEXT_PROTOTYPES
 #include <GL/gl.h>
@@ -129,6 +130,8 @@ std::string StereoCameraConfig::validate() const {
   if (!std::isfinite(sun_azimuth_deg)) return "sun.azimuth_deg: must be finite";
   if (!(shadow_strength >= 0.0 && shadow_strength <= 1.0))
     return "sun.shadow_strength: must be 0-1";
+  if (!(exposure_time_ms >= 0.0 && exposure_time_ms <= 50.0))
+    return "exposure_time_ms: must be 0-50";
   // the lens: finite terms of a size real lenses have, and a radial map that keeps growing out
   // to the image's corner (else two rays would land on one pixel and the model has no inverse)
   const char* names[5] = {"k1", "k2", "p1", "p2", "k3"};
@@ -228,6 +231,15 @@ StereoCamera::StereoCamera(const StereoCameraConfig& config, const mjModel* mode
   if (context_.currentBuffer != mjFB_OFFSCREEN) {
     mjr_freeContext(&context_);
     throw std::runtime_error("stereo camera: MuJoCo has no offscreen buffer under OSMesa");
+  }
+
+  // the motion blur: the body the camera rides on
+  exposure_s_ = 1e-3 * config.exposure_time_ms;
+  if (exposure_s_ > 0.0) {
+    chassis_body_ = mj_name2id(model, mjOBJ_BODY, vehicle_models::MjcfNames::kChassis);
+    if (chassis_body_ < 0)
+      throw std::invalid_argument("stereo camera: exposure_time_ms: the model has no body " +
+                                  std::string(vehicle_models::MjcfNames::kChassis));
   }
 
   // the ground's grain: the model's asphalt texture, drawn afresh from the seed
@@ -374,6 +386,26 @@ void StereoCamera::render(const mjData* data, const core::Pose3& vehicle_in_trac
   simplify_ground(0.5 * (labels.left_in_track.position + labels.right_in_track.position));
   shadow_first_ = scene_.ngeom;
   add_sun(labels.left_in_track);
+
+  // the car's motion now, for the blur: each eye moves as the chassis at its place
+  if (exposure_s_ > 0.0) {
+    mjtNum velocity[6];
+    mj_objectVelocity(model_, data, mjOBJ_BODY, chassis_body_, velocity, 0);
+    const Eigen::Vector3d turn(velocity[0], velocity[1], velocity[2]);
+    const Eigen::Vector3d origin(data->xpos[3 * chassis_body_], data->xpos[3 * chassis_body_ + 1],
+                                 data->xpos[3 * chassis_body_ + 2]);
+    const Eigen::Vector3d mid =
+        0.5 * (labels.left_in_track.position + labels.right_in_track.position);
+    eye_angular_velocity_ = turn;
+    // the car's own geoms (those of its bodies, not the world's ground)
+    car_spheres_.clear();
+    for (int g = 0; g < model_->ngeom; ++g)
+      if (model_->geom_bodyid[g] != 0)
+        car_spheres_.emplace_back(scratch_->geom_xpos[3 * g], scratch_->geom_xpos[3 * g + 1],
+                                  scratch_->geom_xpos[3 * g + 2], model_->geom_rbound[g]);
+    eye_velocity_ =
+        Eigen::Vector3d(velocity[3], velocity[4], velocity[5]) + turn.cross(mid - origin);
+  }
 
   // one pass per eye; depth only for the left one and only on request
   render_eye(labels.left_in_track, frame.left, with_depth ? &frame.left_depth_m : nullptr);
@@ -635,6 +667,79 @@ void StereoCamera::aim(const core::Pose3& eye_in_track) {
   }
 }
 
+void StereoCamera::warp_canvas(core::RgbImage& out_image) const {
+  // each image pixel blends the four canvas pixels round its ray (bilinear)
+  if (warp_.empty()) return;
+  const size_t row = 3 * static_cast<size_t>(canvas_.width_px);
+  out_image.width_px = config_.width_px;
+  out_image.height_px = config_.height_px;
+  out_image.rgb.resize(3 * warp_.size());
+  const uint8_t* src = canvas_rgb_.rgb.data();
+  uint8_t* dst = out_image.rgb.data();
+  for (const WarpSample& s : warp_) {
+    const uint8_t* a = src + 3 * static_cast<size_t>(s.index);
+    const uint32_t wx = s.ix, wy = s.iy;  // in 1/256
+    for (int i = 0; i < 3; ++i, ++a) {
+      const uint32_t top = a[0] * (256 - wx) + a[3] * wx;
+      const uint32_t bottom = a[row] * (256 - wx) + a[row + 3] * wx;
+      *dst++ = static_cast<uint8_t>((top * (256 - wy) + bottom * wy + 32768) >> 16);
+    }
+  }
+}
+
+void motion_blur(core::RgbImage& image, const std::vector<float>& depth_m,
+                 const core::CameraIntrinsics& k, const Eigen::Vector3d& v,
+                 const Eigen::Vector3d& w, double exposure_s,
+                 const std::vector<Eigen::Vector4d>& riding, std::vector<uint8_t>& scratch) {
+  // a static point at normalised image coordinates (x, y) and depth Z moves over the image as
+  // x' = (-vx + x vz) / Z + x y wx - (1 + x^2) wy + y wz,
+  // y' = (-vy + y vz) / Z + (1 + y^2) wx - x y wy - x wz (a pinhole camera moving with v, w);
+  // each pixel averages what passes over it during the exposure: samples along that track, at
+  // the middles of equal parts of the exposure (centred on the image's moment), about one per
+  // pixel it crosses
+  constexpr int kMostSamples = 9;
+  const int width = image.width_px, height = image.height_px;
+  scratch = image.rgb;
+  const double f = k.fx, t = exposure_s;
+  // nothing riding with the camera lies beyond this depth
+  double riding_depth = 0.0;
+  for (const Eigen::Vector4d& sphere : riding)
+    riding_depth = std::max(riding_depth, sphere.z() + sphere.w());
+  for (int r = 0; r < height; ++r) {
+    const double y = (r - k.cy) / k.fy;
+    for (int c = 0; c < width; ++c) {
+      const size_t at = static_cast<size_t>(r) * width + c;
+      const double x = (c - k.cx) / k.fx;
+      const double z = depth_m[at];
+      if (z < riding_depth) {
+        const Eigen::Vector3d point(x * z, y * z, z);
+        if (std::any_of(riding.begin(), riding.end(), [&](const Eigen::Vector4d& sphere) {
+              return (point - sphere.head<3>()).squaredNorm() <= sphere.w() * sphere.w();
+            }))
+          continue;
+      }
+      const double inv = std::isfinite(z) && z > 0.0 ? 1.0 / z : 0.0;
+      const double du =
+          f * t * ((-v.x() + x * v.z()) * inv + x * y * w.x() - (1.0 + x * x) * w.y() + y * w.z());
+      const double dv =
+          f * t * ((-v.y() + y * v.z()) * inv + (1.0 + y * y) * w.x() - x * y * w.y() - x * w.z());
+      const double length = std::hypot(du, dv);
+      if (!(length >= 0.5)) continue;
+      const int samples = std::min(kMostSamples, static_cast<int>(std::ceil(length)) + 1);
+      int sum[3] = {0, 0, 0};
+      for (int i = 0; i < samples; ++i) {
+        const double s = (i + 0.5) / samples - 0.5;
+        const int sc = std::clamp(static_cast<int>(std::lround(c + s * du)), 0, width - 1);
+        const int sr = std::clamp(static_cast<int>(std::lround(r + s * dv)), 0, height - 1);
+        const uint8_t* p = scratch.data() + 3 * (static_cast<size_t>(sr) * width + sc);
+        for (int j = 0; j < 3; ++j) sum[j] += p[j];
+      }
+      for (int j = 0; j < 3; ++j)
+        image.rgb[3 * at + j] = static_cast<uint8_t>((sum[j] + samples / 2) / samples);
+    }
+  }
+}
+
 void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& out_image,
                               std::vector<float>* out_depth_m) {
   // GL draws the pinhole canvas: the image itself, or with distortion a larger one that the
@@ -683,38 +788,37 @@ void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& o
       for (int i = 0; i < 3; ++i) dst[i] = static_cast<uint8_t>(sky[i] + t * sky_slope[i]);
     }
   }
-  if (warp) {
-    // each image pixel blends the four canvas pixels round its ray (bilinear)
-    out_image.width_px = config_.width_px;
-    out_image.height_px = config_.height_px;
-    out_image.rgb.resize(3 * warp_.size());
-    const uint8_t* src = canvas_rgb_.rgb.data();
-    uint8_t* dst = out_image.rgb.data();
-    const size_t row = 3 * static_cast<size_t>(w);
-    for (const WarpSample& s : warp_) {
-      const uint8_t* a = src + 3 * static_cast<size_t>(s.index);
-      const uint32_t wx = s.ix, wy = s.iy;  // in 1/256
-      for (int i = 0; i < 3; ++i, ++a) {
-        const uint32_t top = a[0] * (256 - wx) + a[3] * wx;
-        const uint32_t bottom = a[row] * (256 - wx) + a[row + 3] * wx;
-        *dst++ = static_cast<uint8_t>((top * (256 - wy) + bottom * wy + 32768) >> 16);
-      }
-    }
+  // the canvas's depth along the optical axis, when the blur or the caller needs it: the depth
+  // buffer's z_b = (1/n - 1/d) / (1/n - 1/f); the cleared value (the sky) is infinitely far
+  const bool blur = exposure_s_ > 0.0;
+  if (!depth_m && !blur) {
+    warp_canvas(out_image);
+    return;
   }
-  if (!depth_m) return;
-
-  // depth buffer to metric depth along the optical axis: z_b = (1/n - 1/d) / (1/n - 1/f);
-  // the cleared value (nothing drawn: the sky) reads as infinite depth
+  std::vector<float>& depth = depth_m ? *depth_m : blur_depth_;
   mjr_readPixels(nullptr, depth_scratch_.data(), viewport, &context_);
   const double n = static_cast<float>(config_.near_m), f = static_cast<float>(config_.far_m);
-  depth_m->resize(static_cast<size_t>(w) * h);
+  depth.resize(static_cast<size_t>(w) * h);
   for (int r = 0; r < h; ++r) {
     const float* src = depth_scratch_.data() + static_cast<size_t>(h - 1 - r) * w;
-    float* dst = depth_m->data() + static_cast<size_t>(r) * w;
+    float* dst = depth.data() + static_cast<size_t>(r) * w;
     for (int c = 0; c < w; ++c)
       dst[c] = src[c] >= 1.0f ? std::numeric_limits<float>::infinity()
                               : static_cast<float>(n * f / (f - src[c] * (f - n)));
   }
+  // the motion during the exposure, of the eye in its own frame
+  if (blur) {
+    const Eigen::Matrix3d to_eye = r_world.transpose();
+    std::vector<Eigen::Vector4d> riding;
+    for (const Eigen::Vector4d& sphere : car_spheres_) {
+      const Eigen::Vector3d centre = eye_in_track.inverse().transform(sphere.head<3>());
+      riding.emplace_back(centre.x(), centre.y(), centre.z(), sphere.w());
+    }
+    motion_blur(image, depth, canvas_, to_eye * eye_velocity_, to_eye * eye_angular_velocity_,
+                exposure_s_, riding, blur_scratch_);
+  }
+  warp_canvas(out_image);
+  if (!depth_m) return;
   if (warp) {
     // depth is not blended across edges: the nearest canvas pixel's
     out_depth_m->resize(warp_.size());

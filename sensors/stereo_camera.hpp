@@ -74,6 +74,9 @@ struct StereoCameraConfig {
   double sun_diffuse = 0.0;
   /// How dark a shadow is: the share of the sun's light it takes away from the ground (1: all).
   double shadow_strength = 1.0;
+  /// Exposure time, milliseconds: the image integrates the scene while the car moves, so what
+  /// moves across the image during it is blurred along its track (0: a still image).
+  double exposure_time_ms = 0.0;
   /// Seed of the images' noise (a run gives its scenario's seed).
   uint64_t noise_seed = 0;
 
@@ -84,6 +87,21 @@ struct StereoCameraConfig {
 /// The asphalt texture a camera with ground_texture draws: size x size RGB texels (rows in
 /// order), 8 mm each, tiling without a seam, its mean the flat ground's colour; from the seed.
 std::vector<uint8_t> asphalt_texture(int size, uint64_t seed);
+
+/// The exposure time with sensors.realism on: a machine-vision camera outdoors in daylight.
+inline constexpr double kTypicalExposureTimeMs = 2.0;
+
+/// Blurs a pinhole image (rows top to bottom; k without distortion) as a camera moving with
+/// linear velocity v and angular velocity w (its optical frame: x right, y down, z forward;
+/// m/s, rad/s) sees a static scene over an exposure of exposure_s centred on the image's
+/// moment: each pixel averages the image along the track its point makes meanwhile, from the
+/// pixel's depth along the optical axis (infinite: only the turn moves it). A pixel whose point
+/// lies in one of the spheres `riding` (centre in the optical frame, radius; the car's own
+/// parts, which move with the camera) stays sharp. scratch: reused.
+void motion_blur(core::RgbImage& image, const std::vector<float>& depth_m,
+                 const core::CameraIntrinsics& k, const Eigen::Vector3d& v,
+                 const Eigen::Vector3d& w, double exposure_s,
+                 const std::vector<Eigen::Vector4d>& riding, std::vector<uint8_t>& scratch);
 
 /// Intrinsics of a camera with this configuration (square pixels, principal point in the image
 /// centre; pixel centres at integer coordinates, as in OpenCV), with its lens distortion.
@@ -165,6 +183,8 @@ class StereoCamera {
   // renders the scene from one eye into an RGB image, and the depth buffer if depth_m is given
   void render_eye(const core::Pose3& eye_in_track, core::RgbImage& image,
                   std::vector<float>* depth_m);
+  // the image through the lens from the canvas (nothing without a lens)
+  void warp_canvas(core::RgbImage& out_image) const;
   // the rig's view volume, for skipping cones outside both images
   ViewVolume rig_view(const core::Pose3& left_in_track) const;
   // with distortion: where each image pixel takes its value from on the pinhole canvas
@@ -215,6 +235,16 @@ class StereoCamera {
   // the model's asphalt texture (when the config asks for one), and the size in metres over
   // which it repeats
   int shadow_first_ = 0;
+  // the motion blur: the exposure, the car's body the camera rides on, the eyes' velocity and
+  // turn rate in the track frame for the frame being drawn, and buffers
+  double exposure_s_ = 0.0;
+  int chassis_body_ = -1;
+  Eigen::Vector3d eye_velocity_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d eye_angular_velocity_ = Eigen::Vector3d::Zero();
+  std::vector<float> blur_depth_;
+  // the car's parts as spheres in the track frame (centre, radius), for the frame being drawn
+  std::vector<Eigen::Vector4d> car_spheres_;
+  std::vector<uint8_t> blur_scratch_;
   int asphalt_texture_ = -1;
   double asphalt_period_m_ = 0.0;
   ImageResponseFilter response_filter_;

@@ -951,6 +951,7 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
   bool camera_noise_given = false;
   bool lens_given = false;
   bool texture_given = false;
+  bool exposure_given = false;
   bool sun_given = false;
   bool camera_disabled = false;
   // the stack chosen under autonomy: (over the top-level perception: and slam:)
@@ -1201,6 +1202,11 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
                            cam.distortion[i] = read_number(x[i], c, "distortion");
                          lens_given = true;
                        }},
+                      {"exposure_time_ms",
+                       [&](const YAML::Node& x) {
+                         cam.exposure_time_ms = read_number(x, c, "exposure_time_ms");
+                         exposure_given = true;
+                       }},
                       {"ground_texture",
                        [&](const YAML::Node& x) {
                          cam.ground_texture = read_bool(x, c, "ground_texture");
@@ -1258,6 +1264,9 @@ Scenario load_scenario(const fs::path& file, const std::vector<std::string>& ove
         s.sensors.realism ? sensors::kTypicalLensDistortion : std::array<double, 5>{};
   // and the asphalt has its grain and the sun shines, casting shadows
   if (!texture_given) s.sensors.camera.ground_texture = s.sensors.realism;
+  // the image integrates the light over its exposure, the car moving meanwhile
+  if (!exposure_given)
+    s.sensors.camera.exposure_time_ms = s.sensors.realism ? sensors::kTypicalExposureTimeMs : 0.0;
   if (!sun_given)
     s.sensors.camera.sun_diffuse = s.sensors.realism ? sensors::kTypicalSunDiffuse : 0.0;
   if (s.randomise) randomise_look(s);
@@ -1511,6 +1520,7 @@ void randomise_look(Scenario& s) {
   cam.sun_azimuth_deg = draw("camera_sun_azimuth_deg", 0.0, 360.0, 1);
   cam.sun_elevation_deg = draw("camera_sun_elevation_deg", 15.0, 75.0, 1);
   cam.sun_diffuse = draw("camera_sun_diffuse", 0.2, 0.7, 100);
+  cam.exposure_time_ms = draw("camera_exposure_time_ms", 0.5, 4.0, 10);
 }
 
 sensors::LidarConfig SensorSettings::lidar_config() const {

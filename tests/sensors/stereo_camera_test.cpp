@@ -670,5 +670,74 @@ TEST(StereoCamera, TheSunCastsAConesShadowOnTheGround) {
   EXPECT_NEAR(grey(frame.left, shaded), grey(frame.left, open), 2.0);
 }
 
+// Motion blur (issue 17): an edge a camera passes sideways is smeared over the distance its image
+// moves during the exposure, f v T / Z pixels; a turn smears everything by f w T whatever the
+// depth; a still camera leaves the image as it is; the blur keeps each row's mean.
+TEST(StereoCamera, MotionBlurSmearsAnEdgeOverItsTrackDuringTheExposure) {
+  core::CameraIntrinsics k;
+  k.width_px = 200;
+  k.height_px = 20;
+  k.fx = k.fy = 400.0;
+  k.cx = 99.5;
+  k.cy = 9.5;
+  core::RgbImage edge;
+  edge.width_px = k.width_px;
+  edge.height_px = k.height_px;
+  edge.rgb.assign(3 * 200 * 20, 0);
+  for (int r = 0; r < 20; ++r)
+    for (int c = 100; c < 200; ++c)
+      for (int j = 0; j < 3; ++j) edge.rgb[3 * (r * 200 + c) + j] = 255;
+  const std::vector<float> depth(200 * 20, 5.0f);
+  std::vector<uint8_t> scratch;
+  // the length of the smear in row 10 (the edge's step spread into a ramp: the spread of the
+  // ramp's slope, whose standard deviation is length / sqrt(12) for an even smear), and the
+  // row's mean
+  const auto ramp = [](const core::RgbImage& image) {
+    double sum = 0.0, weight = 0.0, first = 0.0, second = 0.0;
+    for (int c = 0; c < 200; ++c) {
+      const int level = image.rgb[3 * (10 * 200 + c)];
+      sum += level;
+      if (c + 1 < 200) {
+        const double slope = image.rgb[3 * (10 * 200 + c + 1)] - level;
+        weight += slope;
+        first += slope * (c + 0.5);
+        second += slope * (c + 0.5) * (c + 0.5);
+      }
+    }
+    const double mean = first / weight;
+    return std::pair<double, double>(std::sqrt(12.0 * (second / weight - mean * mean)),
+                                     sum / 200.0);
+  };
+  const double exposure = 0.004;
+  // 10 m/s sideways at 5 m: 400 x 10 x 0.004 / 5 = 3.2 px
+  core::RgbImage moving = edge;
+  motion_blur(moving, depth, k, {10.0, 0.0, 0.0}, Vector3d::Zero(), exposure, {}, scratch);
+  const auto [width, mean] = ramp(moving);
+  EXPECT_NEAR(width, 3.2, 0.6);
+  EXPECT_NEAR(mean, ramp(edge).second, 1.0);
+  // twice as far: half the smear, the same turn rate at any depth
+  const std::vector<float> far(200 * 20, 10.0f);
+  core::RgbImage farther = edge;
+  motion_blur(farther, far, k, {20.0, 0.0, 0.0}, Vector3d::Zero(), exposure, {}, scratch);
+  EXPECT_EQ(farther.rgb, moving.rgb);
+  // a turn of 2 rad/s about the camera's down axis: 400 x 2 x 0.004 = 3.2 px at the centre
+  core::RgbImage turning = edge;
+  motion_blur(turning, far, k, Vector3d::Zero(), {0.0, 2.0, 0.0}, exposure, {}, scratch);
+  EXPECT_NEAR(ramp(turning).first, 3.2, 0.6);
+  // 30 m/s: 9.6 px
+  core::RgbImage fast = edge;
+  motion_blur(fast, depth, k, {30.0, 0.0, 0.0}, Vector3d::Zero(), exposure, {}, scratch);
+  EXPECT_NEAR(ramp(fast).first, 9.6, 0.8);
+  // what rides with the camera (the car's nose: a sphere round the points at 5 m) stays sharp
+  core::RgbImage riding = edge;
+  motion_blur(riding, depth, k, {10.0, 0.0, 0.0}, Vector3d::Zero(), exposure,
+              {Eigen::Vector4d(0.0, 0.0, 5.0, 1.0)}, scratch);
+  EXPECT_EQ(riding.rgb, edge.rgb);
+  // still
+  core::RgbImage still = edge;
+  motion_blur(still, depth, k, Vector3d::Zero(), Vector3d::Zero(), exposure, {}, scratch);
+  EXPECT_EQ(still.rgb, edge.rgb);
+}
+
 }  // namespace
 }  // namespace conesim::sensors

@@ -156,6 +156,11 @@ TEST_F(ScenarioFile, SensorRealismIsAScenarioKey) {
   EXPECT_EQ(on.sensors.camera.sun_diffuse, sensors::kTypicalSunDiffuse);
   EXPECT_FALSE(off.sensors.camera.ground_texture);
   EXPECT_EQ(off.sensors.camera.sun_diffuse, 0.0);
+  EXPECT_EQ(on.sensors.camera.exposure_time_ms, sensors::kTypicalExposureTimeMs);
+  EXPECT_EQ(off.sensors.camera.exposure_time_ms, 0.0);
+  EXPECT_NE(error_of(head + "sensors: {camera: {exposure_time_ms: -1}}\n")
+                .find("sensors.camera.exposure_time_ms: must be 0-50"),
+            std::string::npos);
   const Scenario sunny = load_scenario(write(
       head +
       "sensors: {realism: off, camera: {ground_texture: on,\n"
@@ -182,7 +187,7 @@ TEST_F(ScenarioFile, RandomisedLookComesFromTheSeed) {
   const Scenario c = load_scenario(write(text), {"seed=6"});
   EXPECT_EQ(a.look, b.look);
   EXPECT_NE(a.look, c.look);
-  ASSERT_EQ(a.look.size(), 11u);
+  ASSERT_EQ(a.look.size(), 12u);
   EXPECT_EQ(a.look.at("camera_sun_azimuth_deg"), a.sensors.camera.sun_azimuth_deg);
   EXPECT_EQ(a.look.at("camera_exposure_ev"), a.sensors.camera.response.exposure_ev);
   EXPECT_EQ(a.look.at("camera_full_well_e"), a.sensors.camera.response.full_well_e);
