@@ -699,6 +699,8 @@ void motion_blur(core::RgbImage& image, const std::vector<float>& depth_m,
   // pixel it crosses
   constexpr int kMostSamples = 9;
   const int width = image.width_px, height = image.height_px;
+  // a camera at rest: nothing moves
+  if (v.squaredNorm() == 0.0 && w.squaredNorm() == 0.0) return;
   scratch = image.rgb;
   const double f = k.fx, t = exposure_s;
   // nothing riding with the camera lies beyond this depth
@@ -723,9 +725,10 @@ void motion_blur(core::RgbImage& image, const std::vector<float>& depth_m,
           f * t * ((-v.x() + x * v.z()) * inv + x * y * w.x() - (1.0 + x * x) * w.y() + y * w.z());
       const double dv =
           f * t * ((-v.y() + y * v.z()) * inv + (1.0 + y * y) * w.x() - x * y * w.y() - x * w.z());
-      const double length = std::hypot(du, dv);
-      if (!(length >= 0.5)) continue;
-      const int samples = std::min(kMostSamples, static_cast<int>(std::ceil(length)) + 1);
+      const double squared = du * du + dv * dv;
+      if (!(squared >= 0.25)) continue;
+      const int samples =
+          std::min(kMostSamples, static_cast<int>(std::ceil(std::sqrt(squared))) + 1);
       int sum[3] = {0, 0, 0};
       for (int i = 0; i < samples; ++i) {
         const double s = (i + 0.5) / samples - 0.5;
