@@ -63,9 +63,11 @@ std::vector<uint8_t> asphalt_texture(int size, uint64_t seed) {
   // asphalt as a camera sees it: a dark grey of the flat ground's mean colour with light and dark
   // stones of the aggregate (single texels), a grain of a few centimetres, blotches of some
   // decimetres, half a metre and patches of two (wear, repairs); every term drawn from the seed
-  core::Rng rng(seed);
-  const std::vector<float> grain = periodic_noise(size, size / 4, rng);
-  const std::vector<float> blotch = periodic_noise(size, size / 32, rng);
+  // (a stream of its own: the same seed also draws the images' noise)
+  constexpr uint64_t kAsphaltStream = 0x61737068616c74;  // "asphalt"
+  core::Rng rng(core::derive_seed(seed, kAsphaltStream));
+  const std::vector<float> grain = periodic_noise(size, std::max(1, size / 4), rng);
+  const std::vector<float> blotch = periodic_noise(size, std::max(1, size / 32), rng);
   const std::vector<float> mid = periodic_noise(size, 8, rng);
   const std::vector<float> patch = periodic_noise(size, 2, rng);
   std::vector<double> shade(grain.size());

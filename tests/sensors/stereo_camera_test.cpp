@@ -572,14 +572,15 @@ double mean_difference(const core::RgbImage& a, const core::RgbImage& b, int fro
   return sum / static_cast<double>(end - begin);
 }
 
-// the grain of an image over rows [from, to): the mean absolute difference of horizontally
-// neighbouring levels (a smooth shading has none)
+// the grain of an image over rows [from, to): the mean absolute difference of levels 8 pixels
+// apart along a row (a few centimetres on the ground there; a smooth shading has none)
 double grain_of(const core::RgbImage& image, int from, int to) {
+  constexpr size_t kApart = 3 * 8;
   double sum = 0.0;
   const size_t begin = 3 * static_cast<size_t>(from) * image.width_px;
   const size_t end = 3 * static_cast<size_t>(to) * image.width_px;
-  for (size_t i = begin; i + 3 < end; ++i)
-    sum += std::abs(int(image.rgb[i + 3]) - int(image.rgb[i]));
+  for (size_t i = begin; i + kApart < end; ++i)
+    sum += std::abs(int(image.rgb[i + kApart]) - int(image.rgb[i]));
   return sum / static_cast<double>(end - begin);
 }
 
@@ -614,7 +615,7 @@ TEST(StereoCamera, TheAsphaltHasAGrainFixedToTheGround) {
   const double same = mean_difference(at, period, from, to);
   const double moved = mean_difference(at, half, from, to);
   EXPECT_LT(flat, 0.3);
-  EXPECT_GT(grain, 3.0 * std::max(flat, 0.2)) << flat;
+  EXPECT_GT(grain, 1.5) << flat;
   EXPECT_LT(same, 0.5) << "the grain moved with the car";
   EXPECT_GT(moved, 5.0 * std::max(same, 0.2)) << same;
 }
