@@ -619,7 +619,7 @@ void StereoCamera::add_sun(const core::Pose3& eye_in_track) {
     if (!view.may_see(ap, reach * size)) continue;
     const double lit_sun = strength * -dn;
     const double lit =
-        config_.light_ambient + config_.light_diffuse * std::max(0.0, -forward.dot(n)) + lit_sun;
+        config_.light_ambient + headlight_diffuse() * std::max(0.0, -forward.dot(n)) + lit_sun;
     mjvGeom& shadow = scene_.geoms[scene_.ngeom++];
     shadow = g;
     for (int r = 0; r < 3; ++r) {
@@ -636,6 +636,12 @@ void StereoCamera::add_sun(const core::Pose3& eye_in_track) {
     shadow.emission = shadow.specular = shadow.shininess = shadow.reflectance = 0.f;
     shadow.label[0] = '\0';
   }
+}
+
+double StereoCamera::headlight_diffuse() const {
+  // in sunshine the light from the eye gives up the sun's share, so that a face lit by both
+  // stays within full light (the headlight stands for the light a day spreads evenly)
+  return std::max(0.0, config_.light_diffuse - config_.sun_diffuse);
 }
 
 void StereoCamera::aim(const core::Pose3& eye_in_track) {
@@ -664,7 +670,7 @@ void StereoCamera::aim(const core::Pose3& eye_in_track) {
       light.pos[i] = static_cast<float>(eye_in_track.position[i]);
       light.dir[i] = static_cast<float>(forward[i]);
       light.ambient[i] = static_cast<float>(config_.light_ambient);
-      light.diffuse[i] = static_cast<float>(config_.light_diffuse);
+      light.diffuse[i] = static_cast<float>(headlight_diffuse());
     }
   }
 }

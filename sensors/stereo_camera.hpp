@@ -68,7 +68,8 @@ struct StereoCameraConfig {
   /// The sun: a directional light from this elevation above the horizon and azimuth (degrees,
   /// anticlockwise from the track's x axis, the direction the light comes from) with this
   /// diffuse intensity, and the shadows it casts on the ground (every cone, object and the car
-  /// cast theirs, projected along the light). An intensity of 0: no sun, the headlight alone.
+  /// cast theirs, projected along the light). An intensity of 0: no sun, the headlight alone;
+  /// with a sun the headlight gives up its share (light_diffuse - sun_diffuse, at least 0).
   double sun_elevation_deg = 45.0;
   double sun_azimuth_deg = 135.0;
   double sun_diffuse = 0.0;
@@ -178,6 +179,8 @@ class StereoCamera {
   // the sun as a directional light, and the shadows it casts on the ground (scene geoms from
   // shadow_first_ on)
   void add_sun(const core::Pose3& eye_in_track);
+  // the headlight's diffuse intensity: the config's, less the sun's
+  double headlight_diffuse() const;
   // poses both GL cameras (and the headlight) at an eye, with the configured frustum
   void aim(const core::Pose3& eye_in_track);
   // renders the scene from one eye into an RGB image, and the depth buffer if depth_m is given

@@ -659,8 +659,9 @@ TEST(StereoCamera, TheSunCastsAConesShadowOnTheGround) {
   // the ground is the axis's dip) and the sun; the shadow takes the sun's
   const Vector3d forward = labels.left_in_track.orientation * Vector3d::UnitZ();
   const double sun = 0.5 * std::sin(30.0 * std::numbers::pi / 180.0);
-  const double lit =
-      config.light_ambient + config.light_diffuse * std::max(0.0, -forward.z()) + sun;
+  const double lit = config.light_ambient +
+                     (config.light_diffuse - config.sun_diffuse) * std::max(0.0, -forward.z()) +
+                     sun;
   EXPECT_NEAR(beside, away, 0.03 * away);
   EXPECT_NEAR(in_shadow / away, 1.0 - sun / lit, 0.05) << in_shadow << " " << away;
 
