@@ -801,7 +801,9 @@ void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& o
   }
   // the canvas's depth along the optical axis, when the blur or the caller needs it: the depth
   // buffer's z_b = (1/n - 1/d) / (1/n - 1/f); the cleared value (the sky) is infinitely far
-  const bool blur = exposure_s_ > 0.0;
+  // (a car at rest blurs nothing: no depth read for it)
+  const bool blur = exposure_s_ > 0.0 && (eye_velocity_.squaredNorm() > 0.0 ||
+                                          eye_angular_velocity_.squaredNorm() > 0.0);
   if (!depth_m && !blur) {
     warp_canvas(out_image);
     return;
@@ -820,9 +822,10 @@ void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& o
   // the motion during the exposure, of the eye in its own frame
   if (blur) {
     const Eigen::Matrix3d to_eye = r_world.transpose();
+    const core::Pose3 track_in_eye = eye_in_track.inverse();
     std::vector<Eigen::Vector4d> riding;
     for (const Eigen::Vector4d& sphere : car_spheres_) {
-      const Eigen::Vector3d centre = eye_in_track.inverse().transform(sphere.head<3>());
+      const Eigen::Vector3d centre = track_in_eye.transform(sphere.head<3>());
       riding.emplace_back(centre.x(), centre.y(), centre.z(), sphere.w());
     }
     motion_blur(image, depth, canvas_, to_eye * eye_velocity_, to_eye * eye_angular_velocity_,
