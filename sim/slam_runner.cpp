@@ -167,6 +167,17 @@ struct SlamRunner::Lane {
   core::Estimate last_estimate;
   // the scoring posted to the thread (score, note_cones_in_view) and not yet seen done
   std::deque<std::future<void>> scoring;
+  // the scoring not yet posted, in order: it goes to the thread in one job after the next
+  // update (which wakes the thread anyway), behind the updates
+  std::vector<std::function<void()>> unposted;
+  void post_scoring() {
+    if (unposted.empty()) return;
+    forget_scored();
+    scoring.push_back(thread->post_later([jobs = std::move(unposted)] {
+      for (const auto& job : jobs) job();
+    }));
+    unposted.clear();
+  }
   // lets go of the scoring already done, oldest first (an exception in it surfaces here): a
   // long run keeps only what is still queued
   void forget_scored() {
@@ -258,12 +269,8 @@ void SlamRunner::step(TimeUs t, const VehicleSim& car) {
   // lanes' threads, in order with the scoring of the updates)
   if (t % kInViewEveryUs == 0) {
     const core::Pose2 pose = car.truth().pose;
-    for (auto& lane_ptr : lanes_) {
-      Lane& lane = *lane_ptr;
-      lane.forget_scored();
-      lane.scoring.push_back(
-          lane.thread->post([&lane, pose] { lane.scorer.note_cones_in_view(pose); }));
-    }
+    for (auto& lane : lanes_)
+      lane->unposted.push_back([&lane = *lane, pose] { lane.scorer.note_cones_in_view(pose); });
   }
   feed_.step(t, car);
   forward_.t = -1;
@@ -293,6 +300,7 @@ void SlamRunner::post(const DeliveredDetections& frame, const slam::SlamInput& i
       if (!lane.pending.empty())
         throw std::logic_error("SLAM: a frame processed while an earlier one is running");
       take_in(lane, frame, lane.run(lane_input));
+      lane.post_scoring();
       continue;
     }
     // on the lane's thread (one update at a time, in order)
@@ -302,6 +310,7 @@ void SlamRunner::post(const DeliveredDetections& frame, const slam::SlamInput& i
     });
     lane.pending.push_back({tick + latency_us_, tick, ahead, frame, input.odometry.delta,
                             lane_input, std::move(claimed), std::move(result)});
+    lane.post_scoring();
   }
 }
 
@@ -362,12 +371,16 @@ void SlamRunner::finish() {
       take_in(lane, std::move(update.frame), std::move(result));
     }
     // the scoring done (an exception in it surfaces here)
+    lane.post_scoring();
     for (; !lane.scoring.empty(); lane.scoring.pop_front()) lane.scoring.front().get();
   }
 }
 
 void SlamRunner::abandon() {
-  for (auto& lane : lanes_) lane->thread->drop_queued();
+  for (auto& lane : lanes_) {
+    lane->unposted.clear();
+    lane->thread->drop_queued();
+  }
 }
 
 void SlamRunner::take_in(Lane& lane, DeliveredDetections frame, UpdateResult update) {
@@ -380,26 +393,27 @@ void SlamRunner::take_in(Lane& lane, DeliveredDetections frame, UpdateResult upd
     last_frame_pose_ = last_estimate_.pose;
   }
   // the scoring on the lane's thread: nothing in the loop reads it
-  lane.forget_scored();
-  lane.scoring.push_back(
-      lane.thread->post([&lane, frame = std::move(frame), update = std::move(update)] {
-        SlamScorer::Update u;
-        u.stamp = frame.observations.stamp;
-        u.true_pose = frame.capture_pose;
-        u.observations = &frame.observations;
-        u.true_ids = &frame.labels.cone_id;
-        u.estimate = &update.estimate;
-        u.associations = &update.associations;
-        u.loop_closures = update.loop_closures;
-        u.wall_ms = update.wall_ms;
-        u.cpu_ms = update.cpu_ms;
-        u.association_us = update.association_us;
-        lane.scorer.score(u);
-      }));
+  lane.unposted.push_back([&lane, frame = std::move(frame), update = std::move(update)] {
+    SlamScorer::Update u;
+    u.stamp = frame.observations.stamp;
+    u.true_pose = frame.capture_pose;
+    u.observations = &frame.observations;
+    u.true_ids = &frame.labels.cone_id;
+    u.estimate = &update.estimate;
+    u.associations = &update.associations;
+    u.loop_closures = update.loop_closures;
+    u.wall_ms = update.wall_ms;
+    u.cpu_ms = update.cpu_ms;
+    u.association_us = update.association_us;
+    lane.scorer.score(u);
+  });
 }
 
 void SlamRunner::wait_for_lanes() const {
-  for (const auto& lane : lanes_) lane->thread->wait_idle();
+  for (const auto& lane : lanes_) {
+    lane->post_scoring();
+    lane->thread->wait_idle();
+  }
 }
 
 const SlamRunner::Forward& SlamRunner::forward(TimeUs t) const {

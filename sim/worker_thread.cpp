@@ -14,23 +14,24 @@ WorkerThread::~WorkerThread() {
 }
 
 void WorkerThread::wait_idle() {
-  // the jobs run in order: once an empty job has run, so have all posted before it
-  post([] {}).wait();
+  // an empty job in the second queue runs once both queues are empty of what was posted before
+  post_later([] {}).wait();
 }
 
 void WorkerThread::drop_queued() {
   // destroyed outside the lock: a job's captures may be large
-  std::deque<std::function<void()>> dropped;
+  Queue dropped, dropped_later;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     dropped.swap(jobs_);
+    dropped_later.swap(later_);
   }
 }
 
-void WorkerThread::enqueue(std::function<void()> job) {
+void WorkerThread::enqueue(std::function<void()> job, Queue& queue) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    jobs_.push_back(std::move(job));
+    queue.push_back(std::move(job));
   }
   wake_.notify_one();
 }
@@ -41,10 +42,11 @@ void WorkerThread::run() {
     std::function<void()> job;
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      wake_.wait(lock, [this] { return stopping_ || !jobs_.empty(); });
-      if (jobs_.empty()) return;
-      job = std::move(jobs_.front());
-      jobs_.pop_front();
+      wake_.wait(lock, [this] { return stopping_ || !jobs_.empty() || !later_.empty(); });
+      Queue& queue = !jobs_.empty() ? jobs_ : later_;
+      if (queue.empty()) return;
+      job = std::move(queue.front());
+      queue.pop_front();
     }
     // (post() hands the job's result or exception to its future)
     job();

@@ -3,6 +3,10 @@
 // are cast and their cones detected on it while the physics goes on. Because the jobs run in
 // the order they were posted, a job may use what the earlier ones left (the noise generator,
 // a sweep cast in parts) without any more synchronisation.
+//
+// Jobs posted with post_later() form a second queue, run in their own order but only while no
+// post() job is waiting: a SLAM lane's scoring, which nothing in the loop waits for, never
+// delays the next update, which the loop does wait for. The two queues must not share state.
 
 #include <condition_variable>
 #include <deque>
@@ -15,7 +19,7 @@
 
 namespace conesim::sim {
 
-/// Runs posted jobs on one thread, in the order they were posted.
+/// Runs posted jobs on one thread, in the order they were posted (post_later()'s after post()'s).
 class WorkerThread {
  public:
   /// Starts the thread.
@@ -31,30 +35,17 @@ class WorkerThread {
   /// too, and a run that keeps one future per frame would grow by every frame's captures).
   template <typename Job>
   std::future<std::invoke_result_t<Job&>> post(Job job) {
-    using Result = std::invoke_result_t<Job&>;
-    auto promise = std::make_shared<std::promise<Result>>();
-    std::future<Result> result = promise->get_future();
-    auto held = std::make_shared<Job>(std::move(job));
-    enqueue([promise, held]() mutable {
-      try {
-        if constexpr (std::is_void_v<Result>) {
-          (*held)();
-          held.reset();
-          promise->set_value();
-        } else {
-          Result value = (*held)();
-          held.reset();
-          promise->set_value(std::move(value));
-        }
-      } catch (...) {
-        held.reset();
-        promise->set_exception(std::current_exception());
-      }
-    });
-    return result;
+    return post_to(jobs_, std::move(job));
   }
 
-  /// Waits until every job posted so far has run.
+  /// Queues a job behind every post() job waiting now or posted before it starts; among
+  /// themselves these jobs run in the order posted.
+  template <typename Job>
+  std::future<std::invoke_result_t<Job&>> post_later(Job job) {
+    return post_to(later_, std::move(job));
+  }
+
+  /// Waits until every job posted so far (with post() or post_later()) has run.
   void wait_idle();
 
   /// Drops the jobs not yet started (their futures report a broken promise); the one running
@@ -62,12 +53,43 @@ class WorkerThread {
   void drop_queued();
 
  private:
-  void enqueue(std::function<void()> job);
+  using Queue = std::deque<std::function<void()>>;
+
+  template <typename Job>
+  std::future<std::invoke_result_t<Job&>> post_to(Queue& queue, Job job) {
+    using Result = std::invoke_result_t<Job&>;
+    auto promise = std::make_shared<std::promise<Result>>();
+    std::future<Result> result = promise->get_future();
+    auto held = std::make_shared<Job>(std::move(job));
+    enqueue(
+        [promise, held]() mutable {
+          try {
+            if constexpr (std::is_void_v<Result>) {
+              (*held)();
+              held.reset();
+              promise->set_value();
+            } else {
+              Result value = (*held)();
+              held.reset();
+              promise->set_value(std::move(value));
+            }
+          } catch (...) {
+            held.reset();
+            promise->set_exception(std::current_exception());
+          }
+        },
+        queue);
+    return result;
+  }
+
+  void enqueue(std::function<void()> job, Queue& queue);
   void run();
 
   std::mutex mutex_;
   std::condition_variable wake_;
-  std::deque<std::function<void()>> jobs_;
+  // post()'s jobs, and post_later()'s, which run only while the first queue is empty
+  Queue jobs_;
+  Queue later_;
   bool stopping_ = false;
   std::thread thread_;
 };

@@ -1,10 +1,11 @@
-// The LiDAR's worker thread: jobs run one at a time in the order posted, results and errors come
-// back through the futures.
+// The worker thread of the LiDAR and of each SLAM lane: jobs run one at a time in the order
+// posted (the later queue behind the first), results and errors come back through the futures.
 
 #include "sim/worker_thread.hpp"
 
 #include <gtest/gtest.h>
 
+#include <future>
 #include <memory>
 #include <stdexcept>
 #include <thread>
@@ -51,13 +52,34 @@ TEST(WorkerThread, AJobsCapturesGoOnceItHasRunThoughItsFutureIsKept) {
   EXPECT_EQ(kept.get(), 1.0);
 }
 
+TEST(WorkerThread, LaterJobsWaitBehindTheOthersAndKeepTheirOwnOrder) {
+  // a SLAM lane's scoring (post_later) must not hold up its next update (post)
+  std::vector<int> order;  // touched by the worker only until wait_idle returns
+  std::promise<void> release;
+  std::shared_future<void> released = release.get_future().share();
+  WorkerThread worker;
+  worker.post([released] { released.wait(); });  // keeps the thread busy while we queue
+  worker.post_later([&order] { order.push_back(10); });
+  worker.post([&order] { order.push_back(1); });
+  worker.post_later([&order] { order.push_back(11); });
+  worker.post([&order] { order.push_back(2); });
+  release.set_value();
+  worker.wait_idle();
+  EXPECT_EQ(order, (std::vector<int>{1, 2, 10, 11}));
+  // wait_idle also waits for the later queue
+  worker.post_later([&order] { order.push_back(12); });
+  worker.wait_idle();
+  EXPECT_EQ(order.back(), 12);
+}
+
 TEST(WorkerThread, RunsWhatIsQueuedBeforeStopping) {
   int done = 0;
   {
     WorkerThread worker;
     for (int i = 0; i < 20; ++i) worker.post([&done] { ++done; });
+    for (int i = 0; i < 5; ++i) worker.post_later([&done] { ++done; });
   }
-  EXPECT_EQ(done, 20);
+  EXPECT_EQ(done, 25);
 }
 
 }  // namespace
