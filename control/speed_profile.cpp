@@ -22,6 +22,8 @@ constexpr double kTightTurnShare = 0.75;
 // exploration's paths, replanned each tick from the cones in view: there the lead cost 3 cone
 // hits in the 84 GraphSLAM runs over the shared corpus (lap 1 of FSE24, FSG; none without it)
 constexpr double kTightTurnLeadM = 1.5;
+// the curvature's rate of change along a path is taken over this far either side of a point, m
+constexpr double kCurvatureRateSpanM = 1.0;
 // the longitudinal share never drops below this fraction of the limit, so that a car at the
 // lateral limit can still brake and speed up a little
 constexpr double kMinLongitudinalShare = 0.2;
@@ -121,6 +123,30 @@ SpeedProfile plan_speed(const Path& path, const SpeedLimits& limits,
         since += next == 0 ? lap - s[m] : s[next] - s[m];
         if (since <= kTightTurnLeadM) v[m] = std::min(v[m], limits.tight_turn_speed_mps);
       }
+  }
+  // the steering's rate: the curvature changes over kCurvatureRateSpanM either side of a point
+  if (limits.max_curvature_rate_per_s > 0.0 && n > 2) {
+    for (size_t i = 0; i < n; ++i) {
+      // the points about kCurvatureRateSpanM before and after (not past an open path's ends)
+      size_t before = i, after = i;
+      double back = 0.0, ahead = 0.0;
+      auto step_back = [&](size_t m) { return m == 0 ? lap - s[n - 1] : s[m] - s[m - 1]; };
+      auto step_ahead = [&](size_t m) { return m + 1 == n ? lap - s[m] : s[m + 1] - s[m]; };
+      while (back < kCurvatureRateSpanM && (path.closed || before > 0)) {
+        back += step_back(before);
+        before = before == 0 ? n - 1 : before - 1;
+        if (before == i) break;
+      }
+      while (ahead < kCurvatureRateSpanM && (path.closed || after + 1 < n)) {
+        ahead += step_ahead(after);
+        after = (after + 1) % n;
+        if (after == i) break;
+      }
+      const double span = back + ahead;
+      if (!(span > 0.0)) continue;
+      const double change = std::abs(k[after] - k[before]) / span;  // 1/m per metre
+      if (change > 1e-9) v[i] = std::min(v[i], limits.max_curvature_rate_per_s / change);
+    }
   }
   if (point_cap_mps.size() == n)
     for (size_t i = 0; i < n; ++i) v[i] = std::min(v[i], std::max(0.0, point_cap_mps[i]));

@@ -30,6 +30,11 @@ struct SpeedLimits {
   /// cones hit at 4 m/s, 6 at 3 m/s).
   double max_curvature = 0.0;
   double tight_turn_speed_mps = 3.0;
+  /// How fast the car can change the curvature it drives, 1/m per second (its steering rate
+  /// over the steering its full-lock curvature takes); 0: no limit. Where the path's curvature
+  /// changes faster along its length, the speed is capped so that the steering keeps up: a
+  /// chicane taken faster than that left the car at full lock the wrong way.
+  double max_curvature_rate_per_s = 0.0;
 
   /// Lateral, forward and braking acceleration allowed at speed v, m/s^2.
   double lateral_mps2(double v) const;
