@@ -24,10 +24,10 @@ struct SpeedLimits {
   /// limit above.
   std::optional<vehicle_models::PerformanceEnvelope> envelope;
   /// Tightest curvature the car's steering gives (full lock, with its yaw loss), 1/m; 0: none.
-  /// Near it the car turns at tight_turn_speed_mps at most, where it still follows its steering
-  /// (the tyres fight and slide at full lock with any speed) and where the turn-in into a
-  /// minimum hairpin can be timed (measured on 100 generated hard-profile trackdrives: 24 with
-  /// cones hit at 4 m/s, 6 at 3 m/s).
+  /// Near it the car turns at tight_turn_speed_mps at most, where the turn-in into a minimum
+  /// hairpin can be timed (measured on 100 generated hard-profile trackdrives: 24 with cones hit
+  /// at 4 m/s, 6 at 3 m/s; later 28 at 5 m/s, 5 at 3 m/s). The tyres are not the limit: the car
+  /// holds its full-lock radius up to about 5.4 m/s.
   double max_curvature = 0.0;
   double tight_turn_speed_mps = 3.0;
   /// How fast the car can change the curvature it drives, 1/m per second (its steering rate
