@@ -34,6 +34,13 @@ constexpr double kStoppedSpeedMps = 0.3;
 // of 4/s puts the best lap 2-5 % closer to the lap-time bound than 0.2 s with 2/s (the car
 // braked a preview's distance early and answered its speed error slowly), with no cone hit
 constexpr double kSpeedPreviewS = 0.1;
+// where the profile falls the target is read this far ahead while exploring: braking into a
+// minimum hairpin at the end of a long straight, 0.1 s reached the turn-in at 6 m/s instead of 3
+// (generated hard profile, seeds 32, 83, 95), and the braking is gentler while SLAM maps (with
+// 0.1 s on lap 1 GraphSLAM's maps of four EPFL circuits at seed 2 were 0.17-0.20 m off instead of
+// 0.07-0.15 m). The fast laps read their target kSpeedPreviewS ahead only: 0.2 s braked about
+// 0.2 v metres early into every corner (the PacSim circuits' best laps 1-2 % slower).
+constexpr double kBrakePreviewS = 0.2;
 // the share of the steering's rate the speed profile plans curvature changes with
 constexpr double kCurvatureRateShare = 0.8;
 // on the circuits the envelope limits the speed profile; the command and braking are capped
@@ -429,12 +436,13 @@ struct Driver::Impl {
     return false;
   }
 
-  // where the speed target is read: a short preview ahead of s. (A longer one where the profile
-  // falls, 0.2 s, braked about 0.2 v metres early into every corner: the fast laps on the PacSim
-  // circuits 1-2 % slower, the generated hard-profile trackdrives no cleaner, 95 of 100 from
-  // seed 7000 and 98 of 100 from seed 0 with and without it.)
+  // where the speed target is read: a short preview ahead of s, and while the track is being
+  // explored (and mapped) a longer one where the profile falls there
   double speed_preview_at(double v, double s) const {
-    return s + std::max(0.0, v) * kSpeedPreviewS;
+    const double near = s + std::max(0.0, v) * kSpeedPreviewS;
+    if (phase == Phase::kFast) return near;
+    const double far = s + std::max(0.0, v) * kBrakePreviewS;
+    return profile.speed_at(far, lap_m) < profile.speed_at(near, lap_m) ? far : near;
   }
 
   // the profile speed a short preview ahead of s
