@@ -38,9 +38,16 @@ constexpr double kSpeedPreviewS = 0.1;
 // minimum hairpin at the end of a long straight, 0.1 s reached the turn-in at 6 m/s instead of 3
 // (generated hard profile, seeds 32, 83, 95), and the braking is gentler while SLAM maps (with
 // 0.1 s on lap 1 GraphSLAM's maps of four EPFL circuits at seed 2 were 0.17-0.20 m off instead of
-// 0.07-0.15 m). The fast laps read their target kSpeedPreviewS ahead only: 0.2 s braked about
-// 0.2 v metres early into every corner (the PacSim circuits' best laps 1-2 % slower).
+// 0.07-0.15 m). The fast laps read their target kSpeedPreviewS ahead but into the tight turns:
+// 0.2 s braked about 0.2 v metres early into every corner (the PacSim circuits' best laps 1-2 %
+// slower).
 constexpr double kBrakePreviewS = 0.2;
+// on the fast laps the longer preview is kept where the target falls below this multiple of the
+// tight-turn speed: from 31 m/s into a minimum hairpin the short one reached the turn-in at
+// 3.9 m/s instead of 3 and passed a cone with 11 mm (the kinematic loop on generated seed 7059;
+// 0.13 m with this, as with the longer preview everywhere; that entry is on a knife's edge: 2 and
+// 4 gave 0.03 m, 3 gave 0.12 m)
+constexpr double kTightEntryShare = 2.5;
 // the share of the steering's rate the speed profile plans curvature changes with
 constexpr double kCurvatureRateShare = 0.8;
 // on the circuits the envelope limits the speed profile; the command and braking are capped
@@ -436,13 +443,18 @@ struct Driver::Impl {
     return false;
   }
 
-  // where the speed target is read: a short preview ahead of s, and while the track is being
-  // explored (and mapped) a longer one where the profile falls there
+  // where the speed target is read: a short preview ahead of s, and a longer one where the
+  // profile falls there while the track is being explored (and mapped), and on the fast laps
+  // where it falls towards a tight turn
   double speed_preview_at(double v, double s) const {
     const double near = s + std::max(0.0, v) * kSpeedPreviewS;
-    if (phase == Phase::kFast) return near;
     const double far = s + std::max(0.0, v) * kBrakePreviewS;
-    return profile.speed_at(far, lap_m) < profile.speed_at(near, lap_m) ? far : near;
+    const double far_speed = profile.speed_at(far, lap_m);
+    if (!(far_speed < profile.speed_at(near, lap_m))) return near;
+    if (phase == Phase::kFast &&
+        far_speed > kTightEntryShare * SpeedLimits{}.tight_turn_speed_mps)
+      return near;
+    return far;
   }
 
   // the profile speed a short preview ahead of s
@@ -471,8 +483,16 @@ struct Driver::Impl {
     if (!circuit_event()) return l;  // acceleration and skidpad keep their constant limits
     l.envelope = envelope;
     l.max_curvature = 1.0 / full_lock_radius_m(vehicle);
-    // the curvature the steering can add per second, on average over its range, with room left
-    // for the tracker's corrections
+    return l;
+  }
+
+  // the racing line's limits: also the curvature the steering can add per second, on average
+  // over its range, with room left for the tracker's corrections (the exploration's paths, laid
+  // afresh each tick from the cones in view, bend at their far ends as the view changes: there
+  // the limit only slowed lap 1, and the example SLAM plug-in then ran into a cone after its
+  // autocross finish)
+  SpeedLimits fast_limits() const {
+    SpeedLimits l = limits(params.fast_speed_mps);
     l.max_curvature_rate_per_s =
         kCurvatureRateShare * vehicle.max_steer_rate_rps * l.max_curvature / vehicle.max_steer_rad;
     return l;
@@ -786,7 +806,7 @@ struct Driver::Impl {
   void join_racing_line(const core::Estimate& est, const PathProjection& at, double join_m) {
     path = join_from(racing_line, est.pose.position(), at, join_m);
     join_until_m = status.odometer_m + join_m + kJoinPastM;
-    profile = plan_speed(racing_line, limits(params.fast_speed_mps), std::nullopt, std::nullopt,
+    profile = plan_speed(racing_line, fast_limits(), std::nullopt, std::nullopt,
                          racing_line_caps);
     lap_m = racing_line.length();
     track_progress = true;
