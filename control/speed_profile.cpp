@@ -126,12 +126,13 @@ SpeedProfile plan_speed(const Path& path, const SpeedLimits& limits,
   }
   // the steering's rate: the curvature changes over kCurvatureRateSpanM either side of a point
   if (limits.max_curvature_rate_per_s > 0.0 && n > 2) {
+    // the length from point m to the one before and to the one after (round the lap's end)
+    auto step_back = [&](size_t m) { return m == 0 ? lap - s[n - 1] : s[m] - s[m - 1]; };
+    auto step_ahead = [&](size_t m) { return m + 1 == n ? lap - s[m] : s[m + 1] - s[m]; };
     for (size_t i = 0; i < n; ++i) {
       // the points about kCurvatureRateSpanM before and after (not past an open path's ends)
       size_t before = i, after = i;
       double back = 0.0, ahead = 0.0;
-      auto step_back = [&](size_t m) { return m == 0 ? lap - s[n - 1] : s[m] - s[m - 1]; };
-      auto step_ahead = [&](size_t m) { return m + 1 == n ? lap - s[m] : s[m + 1] - s[m]; };
       while (back < kCurvatureRateSpanM && (path.closed || before > 0)) {
         back += step_back(before);
         before = before == 0 ? n - 1 : before - 1;

@@ -391,7 +391,7 @@ void StereoCamera::render(const mjData* data, const core::Pose3& vehicle_in_trac
   shadow_first_ = scene_.ngeom;
   add_sun(labels.left_in_track);
 
-  // the car's motion now, for the blur: each eye moves as the chassis at its place
+  // the car's motion now, for the blur: both eyes move as the chassis does midway between them
   if (exposure_s_ > 0.0) {
     mjtNum velocity[6];
     mj_objectVelocity(model_, data, mjOBJ_BODY, chassis_body_, velocity, 0);

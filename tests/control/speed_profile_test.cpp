@@ -7,6 +7,8 @@
 #include <limits>
 #include <numbers>
 
+#include "test_tracks.hpp"
+
 namespace conesim::control {
 namespace {
 
@@ -134,29 +136,17 @@ TEST(SpeedProfile, AChicaneIsTakenSlowlyEnoughForTheSteeringToSwingAcross) {
   // straight: the curvature swings by 0.5 1/m at the joint. With the steering able to change the
   // curvature by 0.5 1/m per second, the car must spend at least 1 s about the joint; the
   // lateral limit alone (6 m/s at radius 4 m) would give the 2.5 m about it 0.42 s
-  constexpr double kStepM = 0.25, kRadiusM = 4.0, kRatePerS = 0.5;
+  constexpr double kRadiusM = 4.0, kRatePerS = 0.5;
+  testing::CentreLine c;
+  c.straight(20.0).arc(kRadiusM, kPi / 3.0).arc(kRadiusM, -kPi / 3.0).straight(20.0);
   Path path;
-  for (double x = -20.0; x < 0.0; x += kStepM) path.points.push_back({x, 0.0});
-  const Vec2 left_centre(0.0, kRadiusM);
-  const int n = static_cast<int>(std::ceil(kPi / 3.0 * kRadiusM / kStepM));
-  for (int i = 0; i < n; ++i) {
-    const double phi = -0.5 * kPi + kPi / 3.0 * i / n;
-    path.points.push_back(left_centre + kRadiusM * Vec2(std::cos(phi), std::sin(phi)));
-  }
-  const Vec2 joint = left_centre + kRadiusM * Vec2(std::cos(-kPi / 6.0), std::sin(-kPi / 6.0));
-  const Vec2 right_centre = 2.0 * joint - left_centre;
-  for (int i = 0; i < n; ++i) {
-    const double phi = 5.0 * kPi / 6.0 - kPi / 3.0 * i / n;
-    path.points.push_back(right_centre + kRadiusM * Vec2(std::cos(phi), std::sin(phi)));
-  }
-  const Vec2 end = path.points.back();
-  for (double d = kStepM; d < 20.0; d += kStepM) path.points.push_back(end + Vec2(d, 0.0));
+  path.points = c.points();
   const double joint_s = 20.0 + kPi / 3.0 * kRadiusM;
 
   SpeedLimits limits;
   limits.max_speed_mps = 16.0;
   // the time the profile gives the stretch about the joint over which the curvature's change is
-  // measured (1 m either side, rounded up to the points' spacing)
+  // measured (1 m either side, rounded up to the points' spacing of 0.1 m), and a little more
   auto time_near_joint = [&](const SpeedProfile& p) {
     double t = 0.0;
     for (double s = joint_s - 1.25; s < joint_s + 1.25; s += 0.01) t += 0.01 / p.speed_at(s);
