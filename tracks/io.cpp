@@ -42,8 +42,6 @@ constexpr double kStartBehindGateM = 6.0;
 constexpr double kOverlapToleranceM = 0.02;
 /// Largest coordinate accepted, metres: room for UTM northings, and distances stay finite.
 constexpr double kMaxCoordinateM = 1e7;
-/// No centre line is derived along lanes longer than this (real courses are under 2 km).
-constexpr double kMaxLaneLengthM = 20e3;
 
 constexpr std::array<std::string_view, 7> kEufsColumns{
     "tag", "x", "y", "direction", "x_variance", "y_variance", "xy_covariance"};
@@ -428,15 +426,12 @@ void finish(Track& track, const Given& given) {
   // only the nearest blue and yellow cones could, and those may stand round a corner)
   if (!given.gates) track.timing_gates = gates_from_big_orange(track);
 
-  // the centre line (not along absurdly long lanes), and a guessed start facing along it
-  const std::vector<Vec2> left = track.lane_points(track.left_lane);
-  double left_length_m = 0.0;
-  for (size_t i = 0; i + 1 < left.size(); ++i) left_length_m += (left[i + 1] - left[i]).norm();
-  if (left_length_m <= kMaxLaneLengthM)
-    track.centre_line = derive_centre_line(track);
-  else
-    track.warnings.push_back("the left lane is " + std::to_string(left_length_m) +
-                             " m long; no centre line derived");
+  // the centre line (none along absurdly long lanes), and a guessed start facing along it
+  track.centre_line = derive_centre_line(track);
+  if (track.centre_line.empty() && !track.left_lane.empty() && !track.right_lane.empty())
+    track.warnings.push_back("the lanes run over " +
+                             std::to_string(static_cast<int>(kMaxCentreLineM / 1e3)) +
+                             " km; no centre line derived");
 
   // a start guessed without a gate may stand off the track (the middle of the cones of a U or a
   // loop is its infield): the car starts on the centre line, at the beginning of an open one
@@ -472,7 +467,7 @@ void finish(Track& track, const Given& given) {
                                  " m behind the first timing gate");
         // lanes and centre line begin near the start
         orient_lanes(track);
-        if (left_length_m <= kMaxLaneLengthM) track.centre_line = derive_centre_line(track);
+        track.centre_line = derive_centre_line(track);
       }
     }
   }

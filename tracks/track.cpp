@@ -12,6 +12,14 @@ namespace conesim::tracks {
 
 namespace {
 
+// length along the points (closed: with the segment back to the first)
+double polyline_length(const std::vector<Vec2>& pts, bool closed) {
+  double length = 0.0;
+  for (size_t i = 0; i + 1 < pts.size(); ++i) length += (pts[i + 1] - pts[i]).norm();
+  if (closed && pts.size() > 1) length += (pts.front() - pts.back()).norm();
+  return length;
+}
+
 // points every spacing_m along the polyline (closed: around the loop, without repeating start)
 std::vector<Vec2> resample(const std::vector<Vec2>& pts, bool closed, double spacing_m) {
   std::vector<Vec2> path = pts;
@@ -79,6 +87,7 @@ std::vector<Vec2> derive_centre_line(const Track& track, double spacing_m) {
   const std::vector<Vec2> left = track.lane_points(track.left_lane);
   const std::vector<Vec2> right = track.lane_points(track.right_lane);
   if (left.empty() || right.empty()) return {};
+  if (polyline_length(left, track.closed) > kMaxCentreLineM) return {};
 
   // sample the left boundary densely and pair each sample with the nearest right-boundary point
   const std::vector<Vec2> left_dense = resample(left, track.closed, 0.5);
@@ -109,6 +118,7 @@ std::vector<Vec2> derive_centre_line(const Track& track, double spacing_m) {
     }
     mid = std::move(smooth);
   }
+  if (polyline_length(mid, track.closed) > kMaxCentreLineM) return {};
   return resample(mid, track.closed, spacing_m);
 }
 

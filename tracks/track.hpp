@@ -86,7 +86,13 @@ struct Track {
 
 /// Builds the centre line from the ordered lanes: each left cone is paired with the nearest
 /// point of the right boundary polyline and vice versa, the midpoints are ordered along the
-/// lanes and resampled every spacing_m. Returns an empty line when either lane is empty.
+/// lanes and resampled every spacing_m. Returns an empty line when either lane is empty, and
+/// when the left lane or the midpoints' line is longer than kMaxCentreLineM (a malformed file).
 std::vector<Vec2> derive_centre_line(const Track& track, double spacing_m = 1.0);
+
+/// No centre line is derived along lanes, or through midpoints, longer than this (real courses
+/// are under 2 km; the bound keeps a file with far-flung cones from asking for millions of
+/// points), metres.
+constexpr double kMaxCentreLineM = 20e3;
 
 }  // namespace conesim::tracks

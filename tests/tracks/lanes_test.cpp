@@ -213,6 +213,24 @@ TEST(RebuildLanes, ScatteredConesDoNotBreak) {
   EXPECT_TRUE(std::isfinite(track.start.yaw));
 }
 
+TEST(DeriveCentreLine, NoneThroughMidpointsThatJumpBetweenFarAwayArms) {
+  // a 20 m left lane zigzagging across the axis of a right lane shaped like a tall roof: its
+  // nearest right point jumps between the two arms, 29 km apart, at every left sample, so the
+  // midpoints' line would run for hundreds of kilometres (a malformed file once asked for a
+  // point every metre of it)
+  Track track;
+  for (int k = 0; k <= 20; ++k)
+    track.left_lane.push_back(add(track, ConeClass::kBlue, k % 2 == 0 ? -0.5 : 0.5, k));
+  for (const Vec2& p : {Vec2(-15e3, 0.0), Vec2(0.0, 1e5), Vec2(15e3, 0.0)})
+    track.right_lane.push_back(add(track, ConeClass::kYellow, p.x(), p.y()));
+  EXPECT_TRUE(derive_centre_line(track).empty());
+
+  // the same lanes a few metres apart give a line
+  track.right_lane.clear();
+  for (int k = 0; k <= 20; ++k) track.right_lane.push_back(add(track, ConeClass::kYellow, 3.0, k));
+  EXPECT_FALSE(derive_centre_line(track).empty());
+}
+
 TEST(LaneCloses, NeedsEndsCloseTogetherAndALongLane) {
   Track track;
   std::vector<int> square, line;
