@@ -94,7 +94,10 @@ std::vector<Vec2> chain_one(const std::vector<MapCone>& cones, ConeClass side_cl
       const double d = v.norm();
       if (d < kMinLinkM || d > params.max_link_m) continue;
       const double turn = std::atan2(core::cross(dir, v), dir.dot(v));
-      if (std::abs(turn) > params.max_link_turn_rad) continue;
+      const double max_turn = !whole_circuit && d <= params.short_link_m
+                                  ? params.max_short_link_turn_rad
+                                  : params.max_link_turn_rad;
+      if (std::abs(turn) > max_turn) continue;
       const double bend = turn - std::clamp(last_turn, -kMaxPredictedTurnRad, kMaxPredictedTurnRad);
       const double cost = d * (1.0 + params.turn_weight * bend * bend) + penalty;
       if (cost < best) best = cost, next = static_cast<int>(i);

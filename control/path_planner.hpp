@@ -19,6 +19,13 @@ struct PlannerParams {
   double max_link_m = 10.5;
   /// Largest turn between consecutive links of a chain, radians.
   double max_link_turn_rad = 1.3;
+  /// ... and for a link up to short_link_m long of the chains ahead of the car: round the inner
+  /// cones of a minimum hairpin (1.5 m inner radius, cones 2 m apart) the boundary turns by
+  /// 1.4 rad a link, and a chain that may not follow it jumps to a cone of another part of the
+  /// track. Not for a whole circuit's chains, whose cones the lap driven orders where a chain
+  /// cannot follow (boundaries_along): the racing line keeps the boundaries it had.
+  double max_short_link_turn_rad = 1.75;
+  double short_link_m = 2.5;
   /// A link costs its length times (1 + turn_weight * turn^2): straight-on links win. With 2,
   /// the off-class penalty of a start's big orange cone outweighed a 0.7 rad turn to a yellow
   /// cone of the lane beyond (EUFS Jellybean), and the boundary left the start gate.
@@ -58,8 +65,8 @@ Boundaries chain_boundaries(const std::vector<core::MapCone>& cones, const core:
 /// own lap, say), in the order of each cone's nearest point along the line: blue cones within
 /// max_side_distance_m of it to the left, yellow ones to the right, orange ones to the side they
 /// lie on; a blue or yellow cone more than 0.75 m on the wrong side of the line (a wrong colour)
-/// is left out. Where the chains cannot follow a turn (the inner cones of a
-/// minimum hairpin turn by more than a link may) the line the car drove still orders the cones.
+/// is left out. Where a whole circuit's chains cannot follow a turn (the inner cones of a minimum
+/// hairpin turn by more than its links may) the line the car drove still orders the cones.
 /// A side is closed when it has cones all round: no stretch of the line longer than
 /// 2 max_link_m without one.
 Boundaries boundaries_along(const Path& reference, const std::vector<core::MapCone>& cones,

@@ -155,5 +155,20 @@ TEST(HardTracks, FastLapsDriveTheWholeLapWhereTwoPartsOfTheTrackPassClose) {
   EXPECT_GT(std::min(lap2, lap3), 0.6 * (r.gate_crossings[0][1] - r.gate_crossings[0][0]));
 }
 
+TEST(HardTracks, ExplorationFollowsAHairpinTipBesideAnotherPartOfTheTrack) {
+  // a generated hard trackdrive (seed 7195) where the outer cones of a minimum hairpin stand 2 m
+  // from the blue cones of another part of the track: the inner cones turn by 1.4 rad from link
+  // to link, and a chain that could not follow them jumped 9.7 m to a yellow cone of that other
+  // part; the exploration's path then crossed the hairpin's outer boundary (in the MuJoCo car:
+  // three cones hit, two off-courses, and no lap within the time limit)
+  tracks::GeneratorParams g;
+  g.profile = tracks::GeneratorProfile::kHard;
+  const tracks::Track track = tracks::generate_circuit(7195, g);
+  const LoopResult r = drive(track, "hard trackdrive 7195");
+  expect_clean(r);
+  EXPECT_EQ(r.max_outside_m, 0.0) << "outside the lanes at (" << r.max_outside_at.x() << ", "
+                                  << r.max_outside_at.y() << ")";
+}
+
 }  // namespace
 }  // namespace conesim::control

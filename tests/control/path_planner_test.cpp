@@ -159,7 +159,8 @@ double longest_link(const std::vector<Vec2>& chain) {
 
 TEST(PathPlanner, ConesOrderedAlongTheDrivenLapCloseRoundMinimumHairpins) {
   // the inner cones of a minimum hairpin turn by about 80 degrees from link to link, more than
-  // a chain may: the lap the car drove orders them instead, every cone on its own side in turn
+  // a whole circuit's chain may: the lap the car drove orders them instead, every cone on its
+  // own side in turn
   const tracks::Track track = minimum_hairpins();
   const std::vector<MapCone> map = map_of(track);
   const Pose2 start = track.start.compose({-2.25, 0.0, 0.0});
@@ -181,6 +182,27 @@ TEST(PathPlanner, ConesOrderedAlongTheDrivenLapCloseRoundMinimumHairpins) {
       }
     }
   }
+}
+
+TEST(PathPlanner, ChainsAheadFollowTheInnerConesRoundAMinimumHairpin) {
+  // from 6 m before a minimum hairpin the left (inner) chain follows its cones round the turn,
+  // 2 m apart and turning by about 80 degrees a link, and on down the straight after it; held
+  // to the long links' turn limit it cannot turn the tip
+  const tracks::Track track = minimum_hairpins();
+  const std::vector<MapCone> map = map_of(track);
+  const Pose2 before{34.0, 0.0, 0.0};  // the first straight runs from (0, 0) along +x
+  const Boundaries b = chain_boundaries(map, before, {}, 30.0, false);
+  ASSERT_GE(b.left.size(), 6u);
+  for (size_t i = 0; i + 1 < b.left.size(); ++i)
+    EXPECT_LT((b.left[i + 1] - b.left[i]).norm(), 2.3) << "link " << i;
+  // it comes back along the return straight, 6 m to the left (y = 6 - 1.5 = 4.5)
+  EXPECT_NEAR(b.left.back().y(), 4.5, 0.1);
+  EXPECT_LT(b.left.back().x(), 40.0);
+
+  PlannerParams strict;
+  strict.max_short_link_turn_rad = strict.max_link_turn_rad;
+  const Boundaries held = chain_boundaries(map, before, strict, 30.0, false);
+  EXPECT_LT(held.left.back().y(), 4.0);
 }
 
 TEST(PathPlanner, ConesOrderedAlongALapKeepTheirSideAndLeaveFarOnesOut) {
