@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <limits>
 #include <numbers>
+#include <string>
 
 #include "control/racing_line.hpp"
 #include "kinematic_loop.hpp"
@@ -43,6 +44,18 @@ void expect_clean(const LoopResult& r, double min_clearance_m = kMinClearanceM) 
   EXPECT_EQ(r.laps_counted, 3);
   EXPECT_EQ(r.cones_hit, 0);
   EXPECT_GT(r.min_clearance_m, min_clearance_m);
+}
+
+// the generated hard-profile trackdrive of a seed, driven clean and inside the lanes throughout
+LoopResult drive_hard_trackdrive(uint64_t seed) {
+  tracks::GeneratorParams g;
+  g.profile = tracks::GeneratorProfile::kHard;
+  const std::string name = "hard trackdrive " + std::to_string(seed);
+  const LoopResult r = drive(tracks::generate_circuit(seed, g), name.c_str());
+  expect_clean(r);
+  EXPECT_EQ(r.max_outside_m, 0.0) << name << ": outside the lanes at (" << r.max_outside_at.x()
+                                  << ", " << r.max_outside_at.y() << ")";
+  return r;
 }
 
 TEST(HardTracks, FsgMinimumHairpins) {
@@ -140,13 +153,7 @@ TEST(HardTracks, FastLapsDriveTheWholeLapWhereTwoPartsOfTheTrackPassClose) {
   // m apart: boundary chains through the whole map close across that gap and leave the loop out.
   // Unchecked, every fast lap cut through the cones there (26.5 s laps against 47 s for lap 1,
   // five cones hit); the driver now keeps only a circuit that passes near all of its own lap 1
-  tracks::GeneratorParams g;
-  g.profile = tracks::GeneratorProfile::kHard;
-  const tracks::Track track = tracks::generate_circuit(7059, g);
-  const LoopResult r = drive(track, "hard trackdrive 7059");
-  expect_clean(r);
-  EXPECT_EQ(r.max_outside_m, 0.0) << "outside the lanes at (" << r.max_outside_at.x() << ", "
-                                  << r.max_outside_at.y() << ")";
+  const LoopResult r = drive_hard_trackdrive(7059);
   ASSERT_EQ(r.gate_crossings.size(), 1u);
   ASSERT_GE(r.gate_crossings[0].size(), 4u);
   // the fast laps are as long as lap 1 would allow, not a shortcut's length
@@ -161,13 +168,7 @@ TEST(HardTracks, ExplorationFollowsAHairpinTipBesideAnotherPartOfTheTrack) {
   // to link, and a chain that could not follow them jumped 9.7 m to a yellow cone of that other
   // part; the exploration's path then crossed the hairpin's outer boundary (in the MuJoCo car:
   // three cones hit, two off-courses, and no lap within the time limit)
-  tracks::GeneratorParams g;
-  g.profile = tracks::GeneratorProfile::kHard;
-  const tracks::Track track = tracks::generate_circuit(7195, g);
-  const LoopResult r = drive(track, "hard trackdrive 7195");
-  expect_clean(r);
-  EXPECT_EQ(r.max_outside_m, 0.0) << "outside the lanes at (" << r.max_outside_at.x() << ", "
-                                  << r.max_outside_at.y() << ")";
+  drive_hard_trackdrive(7195);
 }
 
 }  // namespace
