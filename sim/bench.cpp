@@ -5,10 +5,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <sstream>
+#include <thread>
 
 #include "sensors/lidar.hpp"
 #include "sensors/pose_history.hpp"
@@ -56,11 +58,37 @@ double closed_loop_rtf(const std::string& name, const std::vector<std::string>& 
   return spread(rtf)["median"];
 }
 
+// what the figures were measured on: the same build gives figures twice as high on one host of a
+// machine class as on another, and a busy host lowers them by a fifth (docs/slam_comparison.md,
+// "Speed"); the load average is read at the start and again at the end
+nlohmann::json host_facts() {
+  std::string cpu = "unknown";
+  std::ifstream info("/proc/cpuinfo");
+  for (std::string line; std::getline(info, line);)
+    if (line.rfind("model name", 0) == 0) {
+      const size_t colon = line.find(':');
+      if (colon != std::string::npos) cpu = line.substr(line.find_first_not_of(" \t", colon + 1));
+      break;
+    }
+  double load[1] = {-1.0};
+  getloadavg(load, 1);
+  return {{"cpu", cpu},
+          {"logical_cpus", std::thread::hardware_concurrency()},
+          {"load_average_1min_start", load[0]}};
+}
+
+void note_end_load(nlohmann::json& host) {
+  double load[1] = {-1.0};
+  getloadavg(load, 1);
+  host["load_average_1min_end"] = load[0];
+}
+
 }  // namespace
 
 nlohmann::json bench_sensors(int repeats, bool closed_loop) {
   const tracks::Track track = make_event_track(core::EventType::kTrackdrive, 1);
   nlohmann::json out;
+  out["host"] = host_facts();
 
   // LiDAR: sweeps of a car moving at 10 m/s along the start straight, with the VLP-16's realism
   // (the default) and as the ideal sensor (`sensors.realism: off`)
@@ -145,7 +173,15 @@ nlohmann::json bench_sensors(int repeats, bool closed_loop) {
     out["closed_loop_lidar_slam_vlp16_rtf"] = closed_loop_rtf(
         "trackdrive-lidar", {"seed=1", "driver.trackdrive_laps=2", "sensors.lidar.model=vlp16"},
         repeats);
+    // the host's speed divides out of these: GraphSLAM's run against the ground-truth run of the
+    // same call, the six shadow lanes against GraphSLAM alone
+    out["closed_loop_graphslam_vs_ground_truth"] =
+        out["closed_loop_graphslam_rtf"].get<double>() / out["closed_loop_rtf"].get<double>();
+    out["closed_loop_graphslam_shadows_vs_graphslam"] =
+        out["closed_loop_graphslam_shadows_rtf"].get<double>() /
+        out["closed_loop_graphslam_rtf"].get<double>();
   }
+  note_end_load(out["host"]);
   out["targets"] = {{"lidar_mrays_per_s", ">= 25"},
                     {"stereo_pair_ms", "<= 25"},
                     {"stereo_pair_ms_shadows_noise", "<= 20"},
@@ -166,7 +202,8 @@ nlohmann::json bench_tracks(const std::vector<int>& cone_counts, int repeats,
                                               ("conesim-bench-tracks-" + std::to_string(getpid()))
                                         : keep_dir;
   fs::create_directories(dir);
-  nlohmann::json out = {{"unit", "seconds, median of repeats"}, {"repeats", repeats}};
+  nlohmann::json out = {
+      {"unit", "seconds, median of repeats"}, {"repeats", repeats}, {"host", host_facts()}};
   nlohmann::json rows = nlohmann::json::array();
   for (BigLayout kind :
        {BigLayout::kClutter, BigLayout::kLong, BigLayout::kRandom, BigLayout::kOutlier}) {
@@ -212,6 +249,7 @@ nlohmann::json bench_tracks(const std::vector<int>& cone_counts, int repeats,
   }
   if (keep_dir.empty()) fs::remove_all(dir);
   out["layouts"] = rows;
+  note_end_load(out["host"]);
   out["target"] = "validate under 1 s at 20000 cones";
   return out;
 }
