@@ -160,18 +160,27 @@ void cast_rays(int count, const float* __restrict cos_elevation,
   }
 }
 
-// for count rays from one origin, whether each ray's track on the ground, up to its length,
-// passes farther than radius from the point (cx, cy) relative to the origin: the first test of
-// whether a ray passes near a cone, for a column's rays at once
-void far_from(int count, float cx, float cy, float radius, const float* __restrict dir_x,
-              const float* __restrict dir_y, const float* __restrict length, int* __restrict far) {
+// for count rays from one origin at height oz, whether each passes far from a cone: its track on
+// the ground, up to its length, passes farther than radius from the point (cx, cy) relative to
+// the origin, or the ray stays above the cone's top over the whole stretch where it does not (a
+// lower bound of its height there: at the track's nearest point, less its drop over twice the
+// radius; drop[ch] is the ray's fall per metre across the ground). The first test of whether a
+// ray passes near a cone, for a column's rays at once; most rays over a low object (a grass
+// strip, a lying cone) pass here.
+void far_from(int count, float cx, float cy, float radius, float oz, float top,
+              const float* __restrict dir_x, const float* __restrict dir_y,
+              const float* __restrict dir_z, const float* __restrict drop,
+              const float* __restrict length, int* __restrict far) {
+  // (a tenth of a millimetre for single precision's rounding)
+  const float reach_down = 2.f * radius, above = top + 1e-4f;
   for (int ch = 0; ch < count; ++ch) {
     const float dx = dir_x[ch], dy = dir_y[ch];
     const float squared = dx * dx + dy * dy;
     const float closest = (cx * dx + cy * dy) / squared;
     const float t = std::min(std::max(closest, 0.f), length[ch]);
     const float ex = cx - t * dx, ey = cy - t * dy;
-    far[ch] = ex * ex + ey * ey > radius * radius;
+    far[ch] = (ex * ex + ey * ey > radius * radius) |
+              (oz + dir_z[ch] * t - reach_down * drop[ch] > above);
   }
 }
 
@@ -234,7 +243,63 @@ struct NearCone {
   float x, y, radius, top_m;
   // index into the cones of the scene
   int index;
+  // how far the footprint was widened beyond the mesh's own (the slack and half the spot)
+  float widening;
 };
+
+// A scenery object's outline seen from above, a rectangle about its heading that holds every
+// vertex of its mesh: far tighter than the disk of its footprint for a long, thin object (a grass
+// edge's 4 m x 1 m strip covers 4 m^2, its disk 13 m^2), so that the rays over the disk but
+// beside the object are not traced through its mesh.
+struct Outline {
+  bool used = false;
+  // its centre from the object's place, its axes (u along the heading, w across) and half sizes
+  float cx = 0.f, cy = 0.f, ux = 1.f, uy = 0.f, half_u = 0.f, half_w = 0.f;
+
+  // narrows [enter, leave] of a ray's track t (dx, dy) from the sensor, the object's place at
+  // (px, py) from the sensor, to the stretch over the outline widened by `widening`; false when
+  // none is left
+  bool narrow(float px, float py, float dx, float dy, float widening, float& enter,
+              float& leave) const {
+    const float rx = px + cx, ry = py + cy;
+    const auto slab = [&](float ax, float ay, float half) {
+      const float rate = dx * ax + dy * ay, at = rx * ax + ry * ay;
+      const float h = half + widening;
+      if (rate == 0.f) return std::abs(at) <= h;
+      const float t0 = (at - h) / rate, t1 = (at + h) / rate;
+      enter = std::max(enter, std::min(t0, t1));
+      leave = std::min(leave, std::max(t0, t1));
+      return enter <= leave;
+    };
+    return slab(ux, uy, half_u) && slab(-uy, ux, half_w);
+  }
+};
+
+// the outline of a scenery object's mesh (its vertices about the object's place) about its
+// heading (a tenth of a millimetre more each way for single precision's rounding)
+Outline outline_of(const SceneryMesh& mesh, float yaw) {
+  Outline o;
+  if (mesh.vertices.empty()) return o;
+  o.used = true;
+  o.ux = std::cos(yaw);
+  o.uy = std::sin(yaw);
+  constexpr float inf = std::numeric_limits<float>::infinity();
+  float lo_u = inf, hi_u = -inf, lo_w = inf, hi_w = -inf;
+  for (const Eigen::Vector3f& v : mesh.vertices) {
+    const float u = v.x() * o.ux + v.y() * o.uy, w = v.y() * o.ux - v.x() * o.uy;
+    lo_u = std::min(lo_u, u);
+    hi_u = std::max(hi_u, u);
+    lo_w = std::min(lo_w, w);
+    hi_w = std::max(hi_w, w);
+  }
+  constexpr float kRoundingM = 1e-4f;
+  o.half_u = 0.5f * (hi_u - lo_u) + kRoundingM;
+  o.half_w = 0.5f * (hi_w - lo_w) + kRoundingM;
+  const float mid_u = 0.5f * (lo_u + hi_u), mid_w = 0.5f * (lo_w + hi_w);
+  o.cx = mid_u * o.ux - mid_w * o.uy;
+  o.cy = mid_u * o.uy + mid_w * o.ux;
+  return o;
+}
 
 // tangent of the angle between a horizontal direction and a unit axis (wide past 60 degrees)
 bool tan_angle_to(float dx, float dy, float axis_x, float axis_y, float& tan_angle) {
@@ -457,6 +522,8 @@ struct Lidar::Impl {
     float top_m = 0.f;
     bool present = true;
     float z = 0.f;
+    // a scenery object's outline (unused for a cone, whose footprint is round)
+    Outline outline;
   };
 
   LidarConfig config;
@@ -515,8 +582,10 @@ struct Lidar::Impl {
     // the points of the chunk's returns and their labels, before they join the scan
     std::vector<core::LidarPoint> points;
     std::vector<int> point_label;
-    // for each cone near a column and each of its rays, whether the ray passes far from it
-    std::vector<int> far;
+    // for each cone near a column and each of its rays, whether the ray passes far from it, for
+    // each ray whether it passes far from them all, and its fall per metre across the ground
+    std::vector<int> far, far_from_all;
+    std::vector<float> drop;
     explicit ChunkRays(size_t n)
         : dir_x(n),
           dir_y(n),
@@ -526,7 +595,9 @@ struct Lidar::Impl {
           intensity(n),
           label(n),
           points(n),
-          point_label(n) {}
+          point_label(n),
+          far_from_all(n),
+          drop(n) {}
   };
 
   void build_beams();
@@ -785,7 +856,7 @@ void Lidar::Impl::build_scene(const tracks::Track& track,
     cone_index[cone.id] = static_cast<int>(cones.size());
     const float z = static_cast<float>(ground.height(cone.position.x(), cone.position.y()));
     const float top = static_cast<float>(cone_shape(cone.cls).height_m + kTopSlackM) + z;
-    cones.push_back({cone.id, k, x, y, footprint[k], top, true, z});
+    cones.push_back({cone.id, k, x, y, footprint[k], top, true, z, Outline{}});
     ray_bounds.top_z = std::max(ray_bounds.top_z, top);
   }
 
@@ -810,7 +881,8 @@ void Lidar::Impl::build_scene(const tracks::Track& track,
     const float z = static_cast<float>(ground.height(object.pose.x, object.pose.y));
     cones.push_back({core::clutter_label(object.cls), k, static_cast<float>(object.pose.x),
                      static_cast<float>(object.pose.y), reach,
-                     top + static_cast<float>(kTopSlackM) + z, true, z});
+                     top + static_cast<float>(kTopSlackM) + z, true, z,
+                     outline_of(mesh, static_cast<float>(object.pose.yaw))});
     ray_bounds.top_z = std::max(ray_bounds.top_z, top + static_cast<float>(kTopSlackM) + z);
   }
   // on ground that is not flat: the highest any of them reaches above the grade's plane (the
@@ -1033,8 +1105,9 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
                              float spread) {
       float r = cone.footprint_m + kFootprintSlackM;
       if (im.spot_slack_per_m > 0.f)
-        r += im.spot_slack_per_m *
-             (std::hypot(cone.x - from_x, cone.y - from_y) + spread + cone.footprint_m);
+        r += im.spot_slack_per_m * (std::sqrt((cone.x - from_x) * (cone.x - from_x) +
+                                              (cone.y - from_y) * (cone.y - from_y)) +
+                                    spread + cone.footprint_m);
       return r;
     };
     for (const Impl::SceneCone* cone : standing)
@@ -1054,7 +1127,8 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
         const float radius = widened(*cone, origin.x(), origin.y(), 0.f);
         if (column_fans[j].may_meet(cone->x, cone->y, radius))
           column_cones.push_back({cone->x - origin.x(), cone->y - origin.y(), radius, cone->top_m,
-                                  static_cast<int>(cone - im.cones.data())});
+                                  static_cast<int>(cone - im.cones.data()),
+                                  radius - cone->footprint_m});
       }
 
       // a column clear of every cone (most of them) meets only the ground, as cast already
@@ -1064,11 +1138,22 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
       // ground every ray is near them all)
       const size_t cone_count = column_cones.size();
       if (rays.far.size() < cone_count * channel_count) rays.far.resize(cone_count * channel_count);
-      if (!anywhere)
+      if (!anywhere) {
+        for (int ch = 0; ch < channel_count; ++ch) {
+          const float dx = rays.dir_x[first + ch], dy = rays.dir_y[first + ch];
+          rays.drop[ch] = std::abs(rays.dir_z[first + ch]) / std::sqrt(dx * dx + dy * dy);
+        }
         for (size_t k = 0; k < cone_count; ++k)
           far_from(channel_count, column_cones[k].x, column_cones[k].y, column_cones[k].radius,
-                   rays.dir_x.data() + first, rays.dir_y.data() + first, rays.length.data() + first,
-                   rays.far.data() + k * channel_count);
+                   origin.z(), column_cones[k].top_m, rays.dir_x.data() + first,
+                   rays.dir_y.data() + first, rays.dir_z.data() + first, rays.drop.data(),
+                   rays.length.data() + first, rays.far.data() + k * channel_count);
+        // the rays far from them all (most) skip the cones one by one
+        std::fill(rays.far_from_all.begin(), rays.far_from_all.begin() + channel_count, 1);
+        for (size_t k = 0; k < cone_count; ++k)
+          for (int ch = 0; ch < channel_count; ++ch)
+            rays.far_from_all[ch] &= rays.far[k * channel_count + ch];
+      }
 
       for (int slot = first; slot < last; ++slot) {
         // a ray that ends where it starts meets nothing
@@ -1084,6 +1169,7 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
         const float dx = rays.dir_x[slot], dy = rays.dir_y[slot], dz = rays.dir_z[slot];
         const float squared = dx * dx + dy * dy;
         const bool near_all = anywhere || !(squared > 1e-6f);
+        if (!near_all && rays.far_from_all[slot - first]) continue;
         // what the ray met before the cones (the ground, or nothing)
         const int behind_label = rays.label[slot];
         const float behind_range = behind_label == kNoReturn ? length : rays.range[slot];
@@ -1103,8 +1189,13 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
                 std::max(0.f, cone.x * cone.x + cone.y * cone.y - closest * closest * squared);
             const float half =
                 std::sqrt(std::max(0.f, cone.radius * cone.radius - miss_squared) / squared);
-            const float enter = std::max(0.f, closest - half);
-            const float leave = std::min(length, closest + half);
+            float enter = std::max(0.f, closest - half);
+            float leave = std::min(length, closest + half);
+            // (an object's outline, tighter than its disk, widened as the disk was)
+            const Outline& outline = im.cones[cone.index].outline;
+            if (outline.used &&
+                !outline.narrow(cone.x, cone.y, dx, dy, cone.widening, enter, leave))
+              continue;
             if (origin.z() + dz * (dz > 0.f ? enter : leave) > cone.top_m) continue;
           }
           im.hit_cone(im.cones[cone.index], origin, Eigen::Vector3f(dx, dy, dz), context, reach,

@@ -12,6 +12,8 @@
 #include "sensors/lidar.hpp"
 #include "sensors/lidar_config.hpp"
 #include "sensors/pose_history.hpp"
+#include "tracks/ground.hpp"
+#include "tracks/scenery.hpp"
 #include "tracks/track.hpp"
 
 namespace {
@@ -54,28 +56,35 @@ tracks::Track stadium() {
   for (int i = 0; i < kConesPerSide; ++i) {
     Eigen::Vector2d p, left;
     centre_line(lap * i / kConesPerSide, p, left);
+    track.left_lane.push_back(id);
     track.cones.push_back({id++, core::ConeClass::kBlue, p + kHalfWidthM * left, {}});
+    track.right_lane.push_back(id);
     track.cones.push_back({id++, core::ConeClass::kYellow, p - kHalfWidthM * left, {}});
   }
   track.closed = true;
+  track.centre_line = tracks::derive_centre_line(track);
   return track;
 }
 
-// the car on the first straight at 10 m/s, poses every physics step (1 ms)
-sensors::PoseHistory driving_poses() {
+// the car on the first straight at 10 m/s, poses every physics step (1 ms), on the ground
+sensors::PoseHistory driving_poses(const tracks::GroundModel& ground) {
   sensors::PoseHistory poses;
   for (core::TimeUs t = 0; t <= 200'000; t += 1000) {
     core::Pose3 p;
     p.position = {10.0 + 10.0 * core::to_seconds(t), 0.0, 0.0};
+    p.position.z() = ground.height(p.position.x(), p.position.y());
     poses.push(t, p);
   }
   return poses;
 }
 
 // one sweep per iteration; reports rays/s and points per sweep
-void run_sweeps(benchmark::State& state, const sensors::LidarConfig& config) {
-  const sensors::Lidar lidar(config, stadium());
-  const sensors::PoseHistory poses = driving_poses();
+void run_sweeps(benchmark::State& state, const sensors::LidarConfig& config,
+                const std::vector<tracks::SceneryObject>& scenery = {},
+                const tracks::GroundModel& ground = {}) {
+  const tracks::Track track = stadium();
+  const sensors::Lidar lidar(config, track, scenery, ground);
+  const sensors::PoseHistory poses = driving_poses(ground);
   core::Rng rng(1);
   int64_t rays = 0, points = 0, traced = 0;
   for (auto _ : state) {
@@ -91,6 +100,7 @@ void run_sweeps(benchmark::State& state, const sensors::LidarConfig& config) {
       static_cast<double>(points) / static_cast<double>(state.iterations());
   // the share of rays that pass near a cone and go through Embree
   state.counters["traced_share"] = static_cast<double>(traced) / static_cast<double>(rays);
+  state.counters["objects"] = static_cast<double>(scenery.size());
 }
 
 // the default VLP-16 with its datasheet noise: the figure `conesim bench sensors` quotes
@@ -113,6 +123,33 @@ void BM_Vlp32cSweep(benchmark::State& state) {
   run_sweeps(state, *sensors::lidar_preset("vlp32c"));
 }
 BENCHMARK(BM_Vlp32cSweep)->Unit(benchmark::kMillisecond);
+
+// the VLP-32C among clutter at 5 objects per 100 m and the grass edge's 4 m strips along both
+// sides (what a realistic venue puts beside the lanes)
+void BM_Vlp32cSweepAmongClutter(benchmark::State& state) {
+  tracks::ClutterConfig clutter;
+  clutter.objects_per_100m = 5.0;
+  clutter.grass_edge = true;
+  run_sweeps(state, *sensors::lidar_preset("vlp32c"), tracks::place_scenery(stadium(), clutter, 1));
+}
+BENCHMARK(BM_Vlp32cSweepAmongClutter)->Unit(benchmark::kMillisecond);
+
+// the same clutter on a 2 % grade with 3 cm bumps, two per 100 m^2 (the "everything on")
+void BM_Vlp32cSweepAmongClutterOnBumpyGrade(benchmark::State& state) {
+  tracks::ClutterConfig clutter;
+  clutter.objects_per_100m = 5.0;
+  clutter.grass_edge = true;
+  tracks::GroundConfig shape;
+  shape.grade_percent = 2.0;
+  shape.bump_height_m = 0.03;
+  shape.bumps_per_100m2 = 2.0;
+  const tracks::Track track = stadium();
+  const tracks::GroundModel ground(track, shape, 1);
+  std::vector<tracks::SceneryObject> scenery = tracks::place_scenery(track, clutter, 1);
+  tracks::lay_on_ground(scenery, ground);
+  run_sweeps(state, *sensors::lidar_preset("vlp32c"), scenery, ground);
+}
+BENCHMARK(BM_Vlp32cSweepAmongClutterOnBumpyGrade)->Unit(benchmark::kMillisecond);
 
 void BM_Os1_64Sweep(benchmark::State& state) {
   run_sweeps(state, *sensors::lidar_preset("os1-64"));

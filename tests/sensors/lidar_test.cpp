@@ -965,6 +965,66 @@ TEST(Lidar, GrassLaidOnAGradeFollowsTheGround) {
   }
 }
 
+// No ray passes through a long, thin object on the ground: no ground return comes from under a
+// grass strip or a fence's feet at any heading, and each strip returns points where
+// the rays come down onto it (the traced stretch of a ray is cut to the object's outline about
+// its heading, not its disk; an outline turned or too small would let rays through).
+TEST(Lidar, NoGroundReturnFromUnderALongThinObjectAtAnyHeading) {
+  const tracks::Track track = make_track(
+      {{core::Vec2(30.0, 1.5), ConeClass::kBlue}, {core::Vec2(30.0, -1.5), ConeClass::kYellow}});
+  std::vector<tracks::SceneryObject> objects;
+  const double headings[] = {0.0, 0.5, 1.5708, 2.4, -0.9, 3.0};
+  for (int k = 0; k < 6; ++k) {
+    const double bearing = 2.0 * std::numbers::pi * k / 6.0 + 0.3;
+    const double range = 4.0 + 0.25 * k;  // (where the lower rings come down)
+    objects.push_back(tracks::make_scenery_object(
+        core::ClutterClass::kGrassEdge,
+        {0.6 + range * std::cos(bearing), range * std::sin(bearing), headings[k]}));
+  }
+  objects.push_back(tracks::make_scenery_object(core::ClutterClass::kFence, {3.0, -9.0, 0.7}));
+  // the sensor on the main hoop (from the front wing its rings skip 3.4-10 m), its spot's width
+  // on (the rays beside each ray are traced through the same objects), without noise or fading
+  LidarConfig config;
+  config.mount = LidarConfig::main_hoop_mount();
+  config.range_noise_sigma_m = 0.0;
+  config.range_noise_growth = 0.0;
+  config.intensity_noise_sigma = 0.0;
+  config.dropout_probability = 0.0;
+  config.detection_range_10pct_m = 0.0;
+  ASSERT_GT(config.beam_divergence_mrad, 0.0);
+  const Lidar lidar(config, track, objects);
+  const PoseHistory poses = drive(Pose3{}, 0.0, 0, 200'000);
+  core::Rng rng(5);
+  const LidarScan scan = lidar.sweep(0, poses, rng);
+
+  std::vector<int> per_object(objects.size(), 0);
+  for (size_t i = 0; i < scan.cloud.points.size(); ++i) {
+    const Eigen::Vector3d p = in_track(lidar, poses, scan.cloud, scan.cloud.points[i]);
+    const int label = scan.labels.cone_id[i];
+    for (size_t k = 0; k < objects.size(); ++k) {
+      const tracks::SceneryObject& o = objects[k];
+      const Eigen::Matrix3d turn =
+          Eigen::AngleAxisd(o.pose.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      const Eigen::Vector3d local =
+          turn.transpose() * (p - Eigen::Vector3d(o.pose.x, o.pose.y, 0.0));
+      for (const tracks::ScenePrimitive& part : o.parts) {
+        // (a fence's panel stands above the ground: rays pass under it)
+        if (part.centre.z() - part.size.z() > 1e-3) continue;
+        // inside the solid's outline from above, 2 mm in from its edges
+        const Eigen::Vector3d q = part.rotation.transpose() * (local - part.centre);
+        if (std::abs(q.x()) > part.size.x() - 2e-3 || std::abs(q.y()) > part.size.y() - 2e-3)
+          continue;
+        ASSERT_NE(label, core::PointCloudLabels::kGroundLabel)
+            << core::to_string(o.cls) << " " << k << ": a ground return from under it at "
+            << p.transpose();
+        per_object[k] += core::clutter_of_label(label) == o.cls;
+      }
+    }
+  }
+  for (size_t k = 0; k < objects.size(); ++k)
+    EXPECT_GE(per_object[k], 20) << core::to_string(objects[k].cls) << " " << k;
+}
+
 // The flat ground keeps its analytic path: a flat ground model gives the scan of no model,
 // bit for bit.
 TEST(Lidar, AFlatGroundModelChangesNoPoint) {
