@@ -13,6 +13,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "conesim_commit.hpp"
 #include "core/error.hpp"
 #include "core/files.hpp"
 #include "sim/interrupt.hpp"
@@ -250,22 +251,11 @@ std::string events_text(const RunRow& r) {
   return join(parts, "; ");
 }
 
-// the sources' commit ("-dirty" with uncommitted changes), when they are a git checkout
+// the commit the binary was built from ("-dirty" with uncommitted changes; empty when the sources
+// were not a git checkout), stamped at build time (cmake/commit_stamp.cmake): asking git when the
+// run starts would name whatever the checkout holds by then
 std::string source_commit() {
-#ifdef CONESIM_SOURCE_DIR
-  const std::string cmd = "git -C '" + std::string(CONESIM_SOURCE_DIR) +
-                          "' describe --always --dirty --abbrev=12 2>/dev/null";
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return "";
-  char buf[64] = {};
-  const bool got = std::fgets(buf, sizeof(buf), p) != nullptr;
-  pclose(p);
-  std::string s = got ? buf : "";
-  while (!s.empty() && (s.back() == '\n' || s.back() == '\r')) s.pop_back();
-  return s;
-#else
-  return "";
-#endif
+  return CONESIM_BUILD_COMMIT;
 }
 
 std::string utc_now() {
