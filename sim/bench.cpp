@@ -58,9 +58,16 @@ double closed_loop_rtf(const std::string& name, const std::vector<std::string>& 
   return spread(rtf)["median"];
 }
 
+// the host's 1-minute load average (-1 when it cannot be read)
+double load_average_1min() {
+  double load[1] = {-1.0};
+  getloadavg(load, 1);
+  return load[0];
+}
+
 // what the figures were measured on: the same build gives figures twice as high on one host of a
 // machine class as on another, and a busy host lowers them by a fifth (docs/slam_comparison.md,
-// "Speed"); the load average is read at the start and again at the end
+// "Speed"); the load average is read here, at the start, and again at the end (note_end_load)
 nlohmann::json host_facts() {
   std::string cpu = "unknown";
   std::ifstream info("/proc/cpuinfo");
@@ -70,17 +77,13 @@ nlohmann::json host_facts() {
       if (colon != std::string::npos) cpu = line.substr(line.find_first_not_of(" \t", colon + 1));
       break;
     }
-  double load[1] = {-1.0};
-  getloadavg(load, 1);
   return {{"cpu", cpu},
           {"logical_cpus", std::thread::hardware_concurrency()},
-          {"load_average_1min_start", load[0]}};
+          {"load_average_1min_start", load_average_1min()}};
 }
 
 void note_end_load(nlohmann::json& host) {
-  double load[1] = {-1.0};
-  getloadavg(load, 1);
-  host["load_average_1min_end"] = load[0];
+  host["load_average_1min_end"] = load_average_1min();
 }
 
 }  // namespace
