@@ -428,15 +428,19 @@ struct Driver::Impl {
   }
 
   // the tyres' grip is shared between turning and driving: out of a turn the car accelerates
-  // with what the turn's lateral acceleration at the steering commanded leaves of the grip (by
-  // the friction ellipse at the car's full grip), none when the steering asks for more than the
-  // tyres hold (the car running wide). The speed command's P-term asks up to its cap when the
-  // car lags its profile: measured on generated hard trackdrives, 15 m/s^2 at 8 m/s with 0.43 rad
-  // of steering out of a turn ran the car wide into an outside cone.
+  // with what the turn's lateral acceleration leaves of the grip (by the friction ellipse at the
+  // car's full grip), none when the steering asks for more than the tyres hold (the car running
+  // wide). The turn is the larger of the wheels' angle now and the angle commanded: with the
+  // angle now alone, the P-term drove through the steering's swing in a chicane into its next
+  // turn at 8 m/s (PacSim FSG19, GraphSLAM seed 3: two cones); with the command alone, FSE23
+  // seed 1 hit one cone. The speed command's P-term asks up to its cap when the car lags its
+  // profile: measured on generated hard trackdrives, 15 m/s^2 at 8 m/s with 0.43 rad of
+  // steering out of a turn ran the car wide into an outside cone.
   double exit_accel_cap(const core::Estimate& est, const VehicleCommand& cmd) const {
     const double v = std::max(0.0, est.speed_mps);
-    const double turn = std::abs(std::tan(cmd.steer_rad)) *
-                        yaw_gain_at(vehicle.yaw_gain, cmd.steer_rad) / vehicle.wheelbase_m;
+    const double steer = std::max(std::abs(steer_now), std::abs(cmd.steer_rad));
+    const double turn =
+        std::tan(steer) * yaw_gain_at(vehicle.yaw_gain, steer) / vehicle.wheelbase_m;
     const double grip =
         limits(params.fast_speed_mps).lateral_mps2(v) / std::max(params.grip_fraction, 1e-3);
     const double share = v * v * turn / grip;

@@ -91,6 +91,19 @@ TEST(ClosedLoop, ExplorationTurnsIntoAMinimumHairpinWithoutUnwindingTheLock) {
   EXPECT_EQ(r.referee.off_course, 0);
 }
 
+TEST(ClosedLoop, FastLapsLeaveATurnWithTheGripTheTurnLeaves) {
+  // generated hard circuit 7051, lap 3: out of a turn the car lagged its speed profile, the
+  // speed command's P-term asked its 15 m/s^2 cap with the steering still near the tyres'
+  // limit, the car ran 0.2 m wide and its rear corner knocked a cone of a 3.3 m lane at
+  // 13.8 m/s. The drive out of a turn is now what the turn leaves of the grip
+  // (control/driver.cpp, exit_accel_cap)
+  const RunResult r = run_shipped("trackdrive", 7051, "exit",
+                                  {"track.generate.profile=hard", "driver.trackdrive_laps=3"});
+  EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
+  EXPECT_TRUE(r.referee.cones_hit.empty()) << r.referee.cones_hit.size() << " cones hit";
+  EXPECT_EQ(r.referee.off_course, 0);
+}
+
 TEST(ClosedLoop, AutocrossIsDeterministicBySeed) {
   const RunResult a = run_shipped("autocross", 2, "a");
   const RunResult b = run_shipped("autocross", 2, "b");
