@@ -19,8 +19,8 @@ RunResult run_shipped(const std::string& name, uint64_t seed, const std::string&
   overrides.push_back("seed=" + std::to_string(seed));
   const Scenario s = load_scenario(find_scenario(name), overrides);
   RunOptions options;
-  options.out_dir = fs::temp_directory_path() / ("conesim-closed-loop-" + tag + "-" +
-                                                 std::to_string(::getpid()));
+  options.out_dir =
+      fs::temp_directory_path() / ("conesim-closed-loop-" + tag + "-" + std::to_string(::getpid()));
   options.plot = false;
   RunResult r = run_scenario(s, scenario_track(s), options);
   EXPECT_TRUE(fs::exists(options.out_dir / "metrics.json"));
@@ -77,6 +77,17 @@ TEST(ClosedLoop, SlamPassCriteriaFailTheRun) {
   EXPECT_NE(r.failures[0].find("SLAM map RMSE"), std::string::npos) << r.failures[0];
 }
 
+// the generated hard-profile circuit of a seed, driven `laps` laps of the shipped trackdrive
+// (ground truth) without a cone hit or an off-course
+void expect_clean_hard_trackdrive(uint64_t seed, int laps) {
+  const RunResult r = run_shipped(
+      "trackdrive", seed, "hard-" + std::to_string(seed),
+      {"track.generate.profile=hard", "driver.trackdrive_laps=" + std::to_string(laps)});
+  EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
+  EXPECT_TRUE(r.referee.cones_hit.empty()) << r.referee.cones_hit.size() << " cones hit";
+  EXPECT_EQ(r.referee.off_course, 0);
+}
+
 TEST(ClosedLoop, ExplorationTurnsIntoAMinimumHairpinWithoutUnwindingTheLock) {
   // generated hard circuit 7177: lap 1 meets a hairpin of 9.45 m outside diameter (cone
   // centres) at the end of a straight. The manoeuvre search turned in at full lock, then, its
@@ -84,11 +95,7 @@ TEST(ClosedLoop, ExplorationTurnsIntoAMinimumHairpinWithoutUnwindingTheLock) {
   // tick and lock on the next for 0.4 s: the steering flipped between 0.25 and 0.63 rad, the
   // car turned in 0.35 m late and knocked three outer cones. A turn under way is now never
   // straightened first (control/manoeuvre.cpp, kCommittedSteerShare)
-  const RunResult r = run_shipped("trackdrive", 7177, "hairpin",
-                                  {"track.generate.profile=hard", "driver.trackdrive_laps=1"});
-  EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
-  EXPECT_TRUE(r.referee.cones_hit.empty()) << r.referee.cones_hit.size() << " cones hit";
-  EXPECT_EQ(r.referee.off_course, 0);
+  expect_clean_hard_trackdrive(7177, 1);
 }
 
 TEST(ClosedLoop, FastLapsLeaveATurnWithTheGripTheTurnLeaves) {
@@ -97,11 +104,7 @@ TEST(ClosedLoop, FastLapsLeaveATurnWithTheGripTheTurnLeaves) {
   // limit, the car ran 0.2 m wide and its rear corner knocked a cone of a 3.3 m lane at
   // 13.8 m/s. The drive out of a turn is now what the turn leaves of the grip
   // (control/driver.cpp, exit_accel_cap)
-  const RunResult r = run_shipped("trackdrive", 7051, "exit",
-                                  {"track.generate.profile=hard", "driver.trackdrive_laps=3"});
-  EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
-  EXPECT_TRUE(r.referee.cones_hit.empty()) << r.referee.cones_hit.size() << " cones hit";
-  EXPECT_EQ(r.referee.off_course, 0);
+  expect_clean_hard_trackdrive(7051, 3);
 }
 
 TEST(ClosedLoop, AutocrossIsDeterministicBySeed) {
@@ -123,8 +126,7 @@ namespace {
 
 TEST(ClosedLoop, AutocrossDrivesOnTheGraphSlamEstimate) {
   // the driver sees only the SLAM estimate built from the noisy cone sensor and odometry
-  const RunResult r = run_shipped("autocross", 1, "slam",
-                                  {"perception=cone_sensor", "slam=graph"});
+  const RunResult r = run_shipped("autocross", 1, "slam", {"perception=cone_sensor", "slam=graph"});
   EXPECT_TRUE(r.referee.completed) << r.referee.dnf_reason;
   EXPECT_TRUE(r.referee.cones_hit.empty());
   const nlohmann::json& g = r.metrics["slam"]["graph"];
