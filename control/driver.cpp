@@ -304,7 +304,7 @@ struct Driver::Impl {
     // the steering moved towards the last command at its rate since the last update
     const double dt = std::max(0.0, core::to_seconds(in.estimate.stamp - last_stamp));
     const double max_change = vehicle.max_steer_rate_rps * dt;
-    steer_now += std::clamp(last_steer_command - steer_now, -max_change, max_change);
+    steer_now = steer_towards(last_steer_command, max_change);
     steer_reach = max_change;
     last_stamp = in.estimate.stamp;
     const Vec2 front = pose.transform({vehicle.rear_axle_to_front_m, 0.0});
@@ -444,15 +444,19 @@ struct Driver::Impl {
   // wide into an outside cone.
   double exit_accel_cap(const core::Estimate& est, const VehicleCommand& cmd) const {
     const double v = std::max(0.0, est.speed_mps);
-    const double steer = std::max(
-        std::abs(steer_now),
-        std::abs(steer_now + std::clamp(cmd.steer_rad - steer_now, -steer_reach, steer_reach)));
-    const double turn =
-        std::tan(steer) * yaw_gain_at(vehicle.yaw_gain, steer) / vehicle.wheelbase_m;
+    const double steer =
+        std::max(std::abs(steer_now), std::abs(steer_towards(cmd.steer_rad, steer_reach)));
+    const double turn = curvature_for_steer(tracker, steer);
     const double grip =
         limits(params.fast_speed_mps).lateral_mps2(v) / std::max(params.grip_fraction, 1e-3);
     const double share = v * v * turn / grip;
     return accel_cap() * std::sqrt(std::max(0.0, 1.0 - share * share));
+  }
+
+  // the wheels' angle moved from now towards `command` by at most `reach` (the steering's rate
+  // over an update)
+  double steer_towards(double command, double reach) const {
+    return steer_now + std::clamp(command - steer_now, -reach, reach);
   }
 
   // whether the path ahead (or the steering now) needs most of the steering's range

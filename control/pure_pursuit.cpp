@@ -77,6 +77,10 @@ double steer_for_curvature(const TrackerParams& params, double k) {
   return std::clamp(d, -params.max_steer_rad, params.max_steer_rad);
 }
 
+double curvature_for_steer(const TrackerParams& params, double d) {
+  return std::tan(d) * yaw_gain_at(params.yaw_gain, d) / params.wheelbase_m;
+}
+
 double track_path(const TrackerParams& params, const core::Pose2& pose, double speed_mps,
                   const Path& path, const PathProjection& from, double curvature_ahead) {
   if (path.segment_count() == 0) return 0.0;

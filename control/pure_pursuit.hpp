@@ -61,6 +61,10 @@ double track_path(const TrackerParams& params, const core::Pose2& pose, double s
 /// The steering angle whose yaw rate (with the anti-Ackermann loss) gives curvature k.
 double steer_for_curvature(const TrackerParams& params, double k);
 
+/// The curvature the car turns on at steering angle d (with the anti-Ackermann loss), 1/m:
+/// steer_for_curvature's inverse within the steering's range.
+double curvature_for_steer(const TrackerParams& params, double d);
+
 /// The gain of the yaw rate over the kinematic one at steering angle d (1 without a table).
 double yaw_gain_at(const std::vector<std::pair<double, double>>& table, double d);
 
