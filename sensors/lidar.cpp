@@ -3,6 +3,7 @@
 #include <embree3/rtcore.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -378,11 +379,26 @@ struct GroundBlocks {
     float z0 = 0.f, sx = 0.f, sy = 0.f;
   };
   std::vector<Plane> planes;
+  // for each cell of the grid, how many cells away (Chebyshev, at most 255) the nearest cell
+  // lies that is not on the grade's plane, or the grid's edge: a ray whose whole stretch through
+  // the ground's band lies within that many cells less one of where it meets the grade's plane
+  // meets the ground there (the fast path of most rays on a grade with bumps)
+  // (stored in tiles of 8 x 8 cells, a cache line each, since a ray's steps and the rays of
+  // neighbouring columns look up cells near each other)
+  std::vector<uint8_t> clear_cells;
+  int tiles_x = 0;
+  static std::vector<uint8_t> clearance(const tracks::GroundGrid& g);
+  uint8_t clear_at(int i, int j) const {
+    return clear_cells[(static_cast<size_t>(j >> 3) * tiles_x + static_cast<size_t>(i >> 3)) * 64 +
+                       static_cast<size_t>((j & 7) * 8 + (i & 7))];
+  }
 
   explicit GroundBlocks(const tracks::GroundGrid& g)
       : nx((g.nx - 1 + kGroundBlock - 1) / kGroundBlock),
         ny((g.ny - 1 + kGroundBlock - 1) / kGroundBlock),
-        max_above(static_cast<size_t>(nx) * ny, -std::numeric_limits<float>::infinity()) {
+        max_above(static_cast<size_t>(nx) * ny, -std::numeric_limits<float>::infinity()),
+        clear_cells(clearance(g)),
+        tiles_x((std::max(0, g.nx - 1) + 7) / 8) {
     for (int j = 0; j < g.ny; ++j)
       for (int i = 0; i < g.nx; ++i) {
         const double plane =
@@ -426,6 +442,53 @@ struct GroundBlocks {
       }
   }
 };
+
+// the cells' clearance of GroundBlocks::clear_cells: 0 for a cell with a vertex off the grade's
+// plane, then a two-pass chamfer of the Chebyshev distance (a cell outside the grid counts as
+// off the plane)
+std::vector<uint8_t> GroundBlocks::clearance(const tracks::GroundGrid& g) {
+  const int cx = g.nx - 1, cy = g.ny - 1;
+  if (cx <= 0 || cy <= 0) return {};
+  std::vector<uint8_t> on_plane(static_cast<size_t>(g.nx) * g.ny);
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i) {
+      const double plane =
+          g.slope.x() * (g.x0 + i * g.cell_m) + g.slope.y() * (g.y0 + j * g.cell_m) + g.plane_z0;
+      on_plane[static_cast<size_t>(j) * g.nx + i] = std::abs(g.at(i, j) - plane) <= kPlanarBlockM;
+    }
+  std::vector<uint8_t> d(static_cast<size_t>(cx) * cy);
+  const auto at = [&](int i, int j) -> uint8_t& { return d[static_cast<size_t>(j) * cx + i]; };
+  // (a neighbour outside the grid is at distance 0)
+  const auto seen = [&](int i, int j) -> int {
+    return i < 0 || j < 0 || i >= cx || j >= cy ? 0 : at(i, j);
+  };
+  for (int j = 0; j < cy; ++j)
+    for (int i = 0; i < cx; ++i) {
+      const size_t v = static_cast<size_t>(j) * g.nx + i;
+      if (!(on_plane[v] && on_plane[v + 1] && on_plane[v + g.nx] && on_plane[v + g.nx + 1])) {
+        at(i, j) = 0;
+        continue;
+      }
+      const int best =
+          std::min({seen(i - 1, j), seen(i - 1, j - 1), seen(i, j - 1), seen(i + 1, j - 1)});
+      at(i, j) = static_cast<uint8_t>(std::min(255, best + 1));
+    }
+  for (int j = cy - 1; j >= 0; --j)
+    for (int i = cx - 1; i >= 0; --i) {
+      if (at(i, j) == 0) continue;
+      const int best =
+          std::min({seen(i + 1, j), seen(i + 1, j + 1), seen(i, j + 1), seen(i - 1, j + 1)}) + 1;
+      at(i, j) = static_cast<uint8_t>(std::min<int>(at(i, j), best));
+    }
+  // in tiles of 8 x 8 (clear_at())
+  const int tx = (cx + 7) / 8, ty = (cy + 7) / 8;
+  std::vector<uint8_t> tiled(static_cast<size_t>(tx) * ty * 64, 0);
+  for (int j = 0; j < cy; ++j)
+    for (int i = 0; i < cx; ++i)
+      tiled[(static_cast<size_t>(j >> 3) * tx + static_cast<size_t>(i >> 3)) * 64 +
+            static_cast<size_t>((j & 7) * 8 + (i & 7))] = at(i, j);
+  return tiled;
+}
 
 // where a ray from origin along dir first comes down onto the grid's surface between t_enter and
 // t_leave (each cell two triangles split along its diagonal from (i, j) to (i + 1, j + 1), as the
@@ -503,6 +566,103 @@ bool meet_grid(const tracks::GroundGrid& g, const GroundBlocks& blocks,
 
 }  // namespace
 
+// A cone class's true shape (its mesh's facets lie within it) for the test of whether a ray that
+// passes over a cone's footprint can meet the mesh at all: the plate out to its corners, and the
+// body, whose radius shrinks with height. Heights above the cone's base.
+struct ConeBounds {
+  float plate_reach = 0.f, plate_top = 0.f;
+  float bottom_radius = 0.f, top_radius = 0.f, height = 0.f;
+
+  // whether the ray can meet the cone: its track on the ground passes miss_squared (squared)
+  // from the axis, nearest at the ray's range `closest`, with `squared` the square of its
+  // horizontal part per metre; its height above the base is z0 + dz t, for t up to length; every
+  // radius widened by `widening`. Conservative: false only when the ray stays clear of both the
+  // plate and the body, with a centimetre of slack in height
+  bool may_meet(float miss_squared, float closest, float squared, float z0, float dz, float length,
+                float widening) const {
+    constexpr auto kSlack = static_cast<float>(kTopSlackM);
+    // the lowest the ray comes over the disk of radius r about the axis (false: it misses it)
+    const auto lowest_over = [&](float r, float& lowest) {
+      if (miss_squared > r * r) return false;
+      const float half = std::sqrt((r * r - miss_squared) / squared);
+      const float a = std::max(0.f, closest - half), b = std::min(length, closest + half);
+      if (!(a <= b)) return false;
+      lowest = z0 + dz * (dz > 0.f ? a : b);
+      return true;
+    };
+    float lowest = 0.f;
+    if (lowest_over(plate_reach + widening, lowest) && lowest <= plate_top + kSlack) return true;
+    // over the body's disk the ray is no lower than `lowest`, where the body is no wider than
+    // at that height
+    if (!lowest_over(bottom_radius + widening, lowest) || lowest > height + kSlack) return false;
+    const float at = std::clamp(lowest - kSlack, plate_top, height);
+    const float r = bottom_radius +
+                    (top_radius - bottom_radius) * (at - plate_top) / (height - plate_top) +
+                    widening;
+    return miss_squared <= r * r;
+  }
+};
+
+// A box of a scenery object, met analytically rather than through Embree (most of the scenery
+// is boxes: a grass strip, a barrier, a fence): its centre relative to the object's place, its
+// axes as rows and its half sizes; the same six faces as its mesh would have.
+struct SolidBox {
+  Eigen::Vector3f centre = Eigen::Vector3f::Zero();
+  Eigen::Matrix3f axes = Eigen::Matrix3f::Identity();
+  Eigen::Vector3f half = Eigen::Vector3f::Zero();
+  float reflectivity = 0.f;
+
+  // where a ray from o (relative to the object's place) along the unit d first meets a face at
+  // a range in [0, reach): the range and the face's unit normal (from inside the box, the face
+  // it leaves by, as a ray meets a mesh from within)
+  bool hit(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float reach, float& t,
+           Eigen::Vector3f& normal) const {
+    const Eigen::Vector3f q = axes * (o - centre), e = axes * d;
+    float lo = -std::numeric_limits<float>::infinity(), hi = -lo;
+    int lo_axis = 0, hi_axis = 0;
+    for (int k = 0; k < 3; ++k) {
+      if (e[k] == 0.f) {
+        if (std::abs(q[k]) > half[k]) return false;
+        continue;
+      }
+      const float per = 1.f / e[k];
+      float a = (-half[k] - q[k]) * per, b = (half[k] - q[k]) * per;
+      if (a > b) std::swap(a, b);
+      if (a > lo) {
+        lo = a;
+        lo_axis = k;
+      }
+      if (b < hi) {
+        hi = b;
+        hi_axis = k;
+      }
+    }
+    if (!(lo <= hi)) return false;
+    const bool outside = lo >= 0.f;
+    t = outside ? lo : hi;
+    if (!(t >= 0.f && t < reach)) return false;
+    normal = axes.row(outside ? lo_axis : hi_axis).transpose();
+    return true;
+  }
+};
+
+// the boxes of an object, placed as its mesh places them (turned by its tilt and heading)
+std::vector<SolidBox> boxes_of(const tracks::SceneryObject& object) {
+  const Eigen::Matrix3d turn =
+      object.tilt * Eigen::AngleAxisd(object.pose.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  std::vector<SolidBox> out;
+  for (const tracks::ScenePrimitive& p : object.parts) {
+    if (p.shape != tracks::ScenePrimitive::Shape::kBox) continue;
+    SolidBox b;
+    b.centre = (turn * p.centre).cast<float>();
+    b.axes = (turn * p.rotation).transpose().cast<float>();
+    b.half = p.size.cast<float>();
+    b.reflectivity = static_cast<float>(p.reflectivity);
+    out.push_back(b);
+  }
+  return out;
+}
+
 struct Lidar::Impl {
   // one beam of a column, in ring order
   struct Channel {
@@ -538,6 +698,10 @@ struct Lidar::Impl {
   bool uneven = false;
   float grade_x = 0.f, grade_y = 0.f, grade_z0 = 0.f;
   float band_lo = 0.f, band_hi = 0.f;
+  // one over the length of the grade's upward normal (-grade_x, -grade_y, 1), and the grid's
+  // cells for trace_ground()'s fast path (their clearance, GroundBlocks::clear_cells)
+  float grade_cos_scale = 1.f;
+  float cell_x0 = 0.f, cell_y0 = 0.f, per_cell = 1.f, cells_x = 0.f, cells_y = 0.f;
   // the height above the grade's plane that every cone and scenery object stays below
   float stuff_above = 0.f;
   std::vector<Channel> channels;
@@ -549,6 +713,11 @@ struct Lidar::Impl {
   std::array<float, kSurfaceMaterialCount> reflectivity{};
   // reflectivity of each triangle of each scene's mesh
   std::vector<std::vector<float>> class_reflectivity;
+  // each cone class's shape
+  std::array<ConeBounds, kClassCount> cone_bounds{};
+  // each scene's boxes, met without Embree (a scenery object's; its scene holds the rest of its
+  // solids, or is null when it has none)
+  std::vector<std::vector<SolidBox>> class_boxes;
   std::vector<SceneCone> cones;
   std::unordered_map<int, int> cone_index;
   // the ground (the plane z = 0 over a rectangle) and the height above which nothing stands,
@@ -560,6 +729,8 @@ struct Lidar::Impl {
   float spot_slack_per_m = 0.f;
   // the offset of the beam's outer thirds from its axis (tangent of the angle; 0: a thin ray)
   float spot_offset = 0.f;
+  // one over the length of a ray turned by the offset: 1 / sqrt(1 + spot_offset^2)
+  float spot_scale = 1.f;
   // the squared range of a 10 % diffuse target at normal incidence, over 0.1, for the signal
   // of a return (0: every return is detected)
   float detection_scale = 0.f;
@@ -608,6 +779,7 @@ struct Lidar::Impl {
                            float tfar);
   float trace_ground(ChunkRays& rays, int first, const Eigen::Vector3f& origin,
                      const Eigen::Vector3f& heading, const Eigen::Vector3f& up) const;
+  void meet_ground(ChunkRays& rays, int slot, float length, float t, float cos_incidence) const;
   void throw_on_device_error(const char* what) const;
   float intensity_of(float reflectivity_of_surface, float cos_incidence, float range) const;
   float cast_column(ChunkRays& rays, int first, const Eigen::Vector3f& origin,
@@ -666,7 +838,17 @@ RTCRayHit Lidar::Impl::ray_hit(const Eigen::Vector3f& origin, const Eigen::Vecto
 void Lidar::Impl::hit_cone(const SceneCone& cone, const Eigen::Vector3f& origin,
                            const Eigen::Vector3f& dir, RTCIntersectContext& context, float& reach,
                            int& label, float& intensity) const {
-  RTCRayHit ray = ray_hit(origin - Eigen::Vector3f(cone.x, cone.y, cone.z), dir, 0.f, reach);
+  const Eigen::Vector3f from = origin - Eigen::Vector3f(cone.x, cone.y, cone.z);
+  for (const SolidBox& box : class_boxes[cone.cls]) {
+    float t = 0.f;
+    Eigen::Vector3f normal;
+    if (!box.hit(from, dir, reach, t, normal)) continue;
+    reach = t;
+    label = cone.label;
+    intensity = intensity_of(box.reflectivity, std::abs(dir.dot(normal)), t);
+  }
+  if (!class_scenes[cone.cls]) return;
+  RTCRayHit ray = ray_hit(from, dir, 0.f, reach);
   rtcIntersect1(class_scenes[cone.cls], &context, &ray);
   if (ray.hit.geomID == RTC_INVALID_GEOMETRY_ID) return;
 
@@ -708,30 +890,66 @@ float Lidar::Impl::trace_ground(ChunkRays& rays, int first, const Eigen::Vector3
       // (from above the ground's band it never comes down to the ground)
       if (above > band_hi) continue;
     }
+    // the fast path: a ray that comes down onto the grade's plane where the ground around is
+    // that plane. From where the ray enters the band, it steps over the cells that the clearance
+    // of the cell it is over says lie on the plane (GroundBlocks::clear_cells), until it passes
+    // the plane (then it met the ground there) or comes near a cell off the plane (then it is
+    // marched from there)
+    const Eigen::Vector3f dir(rays.dir_x[slot], rays.dir_y[slot], rays.dir_z[slot]);
+    float from = 0.f;
+    if (climb < 0.f && above > 0.f) {
+      const float per_climb = 1.f / climb;
+      const float t_plane = -above * per_climb;
+      from = std::max(0.f, (band_hi - above) * per_climb);
+      // (metres of the ray per cell it runs over, in the larger of the two axes)
+      const float per_run = 1.f / (per_cell * std::max(std::abs(dir.x()), std::abs(dir.y())));
+      bool met = false;
+      while (t_plane <= length) {
+        const float u = (origin.x() + from * dir.x() - cell_x0) * per_cell;
+        const float v = (origin.y() + from * dir.y() - cell_y0) * per_cell;
+        if (!(u >= 0.f && v >= 0.f && u < cells_x && v < cells_y)) break;
+        const int clear = ground_blocks->clear_at(static_cast<int>(u), static_cast<int>(v));
+        if (clear <= 1) break;
+        from += static_cast<float>(clear - 1) * per_run;
+        if (from >= t_plane) {
+          met = true;
+          break;
+        }
+      }
+      if (met) {
+        // (the cosine of incidence on the grade's plane: dir . its normal is the climb)
+        meet_ground(rays, slot, length, t_plane, -climb * grade_cos_scale);
+        continue;
+      }
+    }
     float enter = 0.f, leave = rays.length[slot];
     if (climb != 0.f) {
       const float to_lo = (band_lo - above) / climb, to_hi = (band_hi - above) / climb;
-      enter = std::max(0.f, std::min(to_lo, to_hi));
+      enter = std::max(from, std::min(to_lo, to_hi));
       leave = std::min(leave, std::max(to_lo, to_hi));
     } else if (above < band_lo || above > band_hi) {
       continue;
     }
     if (!(enter <= leave)) continue;
-    const Eigen::Vector3f dir(rays.dir_x[slot], rays.dir_y[slot], rays.dir_z[slot]);
     float t = 0.f;
     Eigen::Vector3f normal;
-    if (!meet_grid(ground_grid, *ground_blocks, origin, dir, above, climb, enter, leave, t, normal))
-      continue;
-    rays.label[slot] = core::PointCloudLabels::kGroundLabel;
-    rays.range[slot] = t;
-    // nothing beyond the ground is seen: the ray ends just past it, as on the plane
-    rays.length[slot] = std::min(length, t * 1.0001f + kGroundSlackM);
-    rays.intensity[slot] = ray_bounds.ground_scale * std::abs(dir.dot(normal)) / normal.norm() /
-                           (1.f + t * t * ray_bounds.falloff);
+    if (meet_grid(ground_grid, *ground_blocks, origin, dir, above, climb, enter, leave, t, normal))
+      meet_ground(rays, slot, length, t, std::abs(dir.dot(normal)) / normal.norm());
   }
   float reach = 0.f;
   for (int slot = first; slot < first + count; ++slot) reach = std::max(reach, rays.length[slot]);
   return reach;
+}
+
+// the ray in slot (at most length long) meets the ground at range t with that cosine of incidence
+void Lidar::Impl::meet_ground(ChunkRays& rays, int slot, float length, float t,
+                              float cos_incidence) const {
+  rays.label[slot] = core::PointCloudLabels::kGroundLabel;
+  rays.range[slot] = t;
+  // nothing beyond the ground is seen: the ray ends just past it, as on the plane
+  rays.length[slot] = std::min(length, t * 1.0001f + kGroundSlackM);
+  rays.intensity[slot] =
+      ray_bounds.ground_scale * cos_incidence / (1.f + t * t * ray_bounds.falloff);
 }
 
 // the ground's grid and the band about its grade's plane that holds it
@@ -743,9 +961,16 @@ void Lidar::Impl::build_ground(const tracks::GroundModel& ground) {
   grade_x = static_cast<float>(g.slope.x());
   grade_y = static_cast<float>(g.slope.y());
   grade_z0 = static_cast<float>(g.plane_z0);
-  // a centimetre beyond the band: far more than single precision loses at these heights
-  band_lo = static_cast<float>(g.residual_min) - 0.01f;
-  band_hi = static_cast<float>(g.residual_max) + 0.01f;
+  // two millimetres beyond the band: far more than single precision loses at these heights
+  band_lo = static_cast<float>(g.residual_min) - 0.002f;
+  band_hi = static_cast<float>(g.residual_max) + 0.002f;
+  // the fast path's cells
+  grade_cos_scale = 1.f / std::sqrt(1.f + grade_x * grade_x + grade_y * grade_y);
+  cell_x0 = static_cast<float>(g.x0);
+  cell_y0 = static_cast<float>(g.y0);
+  per_cell = static_cast<float>(1.0 / g.cell_m);
+  cells_x = static_cast<float>(std::max(0, g.nx - 1));
+  cells_y = static_cast<float>(std::max(0, g.ny - 1));
 }
 
 void Lidar::Impl::build_beams() {
@@ -779,6 +1004,8 @@ void Lidar::Impl::build_beams() {
   // the beam's spot and the fading of weak returns
   const double divergence_rad = config.beam_divergence_mrad * 1e-3;
   spot_offset = static_cast<float>(std::tan(divergence_rad / 3.0));
+  spot_scale =
+      static_cast<float>(1.0 / std::sqrt(1.0 + std::pow(std::tan(divergence_rad / 3.0), 2)));
   // (a ray's range over its horizontal distance is at most 1 / cos of the steepest beam)
   double steepest_deg = 0.0;
   for (double e : config.elevations_deg) steepest_deg = std::max(steepest_deg, std::abs(e));
@@ -833,6 +1060,7 @@ void Lidar::Impl::build_scene(const tracks::Track& track,
   std::array<float, kClassCount> footprint{};
   class_scenes.assign(kClassCount, nullptr);
   class_reflectivity.resize(kClassCount);
+  class_boxes.resize(kClassCount);
   for (int k = 0; k < kClassCount; ++k) {
     const ConeShape shape = cone_shape(static_cast<core::ConeClass>(k));
     const ConeMesh mesh = build_cone_mesh(shape, config.cone_mesh_sides);
@@ -840,6 +1068,10 @@ void Lidar::Impl::build_scene(const tracks::Track& track,
       class_reflectivity[k].push_back(reflectivity[static_cast<int>(m)]);
     footprint[k] = static_cast<float>(
         std::max(shape.plate_width_m * std::numbers::sqrt2 / 2.0, shape.body_bottom_radius_m));
+    cone_bounds[k] = {
+        static_cast<float>(shape.plate_width_m * std::numbers::sqrt2 / 2.0),
+        static_cast<float>(shape.plate_height_m), static_cast<float>(shape.body_bottom_radius_m),
+        static_cast<float>(shape.body_top_radius_m), static_cast<float>(shape.height_m)};
     class_scenes[k] = rtcNewScene(device);
     rtcSetSceneBuildQuality(class_scenes[k], RTC_BUILD_QUALITY_HIGH);
     RTCGeometry geom = make_triangle_geometry(device, mesh.vertices, mesh.triangles);
@@ -860,8 +1092,8 @@ void Lidar::Impl::build_scene(const tracks::Track& track,
     ray_bounds.top_z = std::max(ray_bounds.top_z, top);
   }
 
-  // every scenery object: a scene of its own holding its mesh about its place, labelled by its
-  // class (never a cone id)
+  // every scenery object: its boxes, and a scene of its own holding the mesh of its other solids
+  // about its place, labelled by its class (never a cone id)
   for (const tracks::SceneryObject& object : scenery) {
     const SceneryMesh mesh = build_scenery_mesh(object, config.cone_mesh_sides);
     const int k = static_cast<int>(class_scenes.size());
@@ -870,14 +1102,23 @@ void Lidar::Impl::build_scene(const tracks::Track& track,
       reach = std::max(reach, v.head<2>().norm());
       top = std::max(top, v.z());
     }
+    class_boxes.push_back(boxes_of(object));
+    tracks::SceneryObject round = object;
+    std::erase_if(round.parts, [](const tracks::ScenePrimitive& p) {
+      return p.shape == tracks::ScenePrimitive::Shape::kBox;
+    });
     class_reflectivity.emplace_back();
-    for (float r : mesh.reflectivity) class_reflectivity.back().push_back(r);
-    class_scenes.push_back(rtcNewScene(device));
-    rtcSetSceneBuildQuality(class_scenes.back(), RTC_BUILD_QUALITY_HIGH);
-    RTCGeometry geom = make_triangle_geometry(device, mesh.vertices, mesh.triangles);
-    rtcAttachGeometry(class_scenes.back(), geom);
-    rtcReleaseGeometry(geom);
-    rtcCommitScene(class_scenes.back());
+    class_scenes.push_back(nullptr);
+    if (!round.parts.empty()) {
+      const SceneryMesh solids = build_scenery_mesh(round, config.cone_mesh_sides);
+      for (float r : solids.reflectivity) class_reflectivity.back().push_back(r);
+      class_scenes.back() = rtcNewScene(device);
+      rtcSetSceneBuildQuality(class_scenes.back(), RTC_BUILD_QUALITY_HIGH);
+      RTCGeometry geom = make_triangle_geometry(device, solids.vertices, solids.triangles);
+      rtcAttachGeometry(class_scenes.back(), geom);
+      rtcReleaseGeometry(geom);
+      rtcCommitScene(class_scenes.back());
+    }
     const float z = static_cast<float>(ground.height(object.pose.x, object.pose.y));
     cones.push_back({core::clutter_label(object.cls), k, static_cast<float>(object.pose.x),
                      static_cast<float>(object.pose.y), reach,
@@ -1010,11 +1251,11 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
   Impl::ChunkRays rays(static_cast<size_t>(kChunkColumns) * channel_count);
   std::array<Fan, kChunkColumns> column_fans;
   size_t pose_cursor = 0;
-  core::Rng& rng = noise.rng;
   const float range_sigma = static_cast<float>(cfg.range_noise_sigma_m);
   const float intensity_sigma = static_cast<float>(cfg.intensity_noise_sigma);
   const float min_range = static_cast<float>(cfg.min_range_m);
   const bool dropout = cfg.dropout_probability > 0.0;
+  const auto dropout_probability = static_cast<float>(cfg.dropout_probability);
   const float range_growth = static_cast<float>(cfg.range_noise_growth);
   const float echo_merge = static_cast<float>(cfg.echo_merge_m);
   const float detection_scale = im.detection_scale;
@@ -1197,6 +1438,13 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
                 !outline.narrow(cone.x, cone.y, dx, dy, cone.widening, enter, leave))
               continue;
             if (origin.z() + dz * (dz > 0.f ? enter : leave) > cone.top_m) continue;
+            // (a cone: its plate and body, tighter than its footprint)
+            const Impl::SceneCone& scene_cone = im.cones[cone.index];
+            if (scene_cone.cls < kClassCount &&
+                !im.cone_bounds[scene_cone.cls].may_meet(miss_squared, closest, squared,
+                                                         origin.z() - scene_cone.z, dz, length,
+                                                         cone.widening))
+              continue;
           }
           im.hit_cone(im.cones[cone.index], origin, Eigen::Vector3f(dx, dy, dz), context, reach,
                       rays.label[slot], rays.intensity[slot]);
@@ -1215,8 +1463,9 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
           const float across = im.spot_offset / std::sqrt(squared);
           for (int side = 0; side < 2; ++side) {
             const float shift = side == 0 ? -across : across;
+            // (the shift is across the ray's horizontal part: the length is the same for all)
             const Eigen::Vector3f dir =
-                Eigen::Vector3f(dx - shift * dy, dy + shift * dx, dz).normalized();
+                Eigen::Vector3f(dx - shift * dy, dy + shift * dx, dz) * im.spot_scale;
             Echo& part = parts[1 + side];
             part = {behind_range, behind_label, behind_energy};
             float part_reach = behind_range;
@@ -1259,7 +1508,7 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
         if (label == kNoReturn) continue;
 
         // a return, unless the dropout takes it
-        if (dropout && core::uniform(rng, 0.0, 1.0) < cfg.dropout_probability) {
+        if (dropout && noise.uniform() < dropout_probability) {
           ++dropped;
           continue;
         }
@@ -1274,7 +1523,7 @@ void Lidar::sweep_columns(core::TimeUs sweep_start, int column_begin, int column
           const float q = reflected * detection_scale / std::max(range * range, 1e-6f);
           const float q4 = (q * q) * (q * q);
           // (beyond q = 32 the return is lost with a probability under 1e-6: no draw)
-          if (q < 32.f && core::uniform(rng, 0.0, 1.0) * (1.0 + q4) > q4) {
+          if (q < 32.f && noise.uniform() * (1.f + q4) > q4) {
             ++faded;
             continue;
           }

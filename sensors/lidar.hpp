@@ -51,14 +51,16 @@ struct LidarScan {
   LidarSweepStats stats;
 };
 
-/// The noise of a sweep cast in parts (Lidar::sweep_columns): the generator and the normal
-/// sampler with the samples it holds, carried from one part to the next so that the parts draw
-/// the same numbers as one sweep() does. Starts a sweep's noise; holds the generator by
-/// reference.
+/// The noise of a sweep cast in parts (Lidar::sweep_columns): the normal sampler with the
+/// samples it holds and the generator of the uniform draws (dropout, fading), both seeded from
+/// the sweep's generator when the sweep starts and carried from one part to the next, so that the
+/// parts draw the same numbers as one sweep() does.
 struct LidarNoise {
-  explicit LidarNoise(core::Rng& generator) : rng(generator), normal(generator) {}
-  core::Rng& rng;
+  explicit LidarNoise(core::Rng& generator) : normal(generator), uniform_bits(generator) {}
   core::ZigguratNormals normal;
+  core::Xoshiro256 uniform_bits;
+  /// A uniform float in [0, 1).
+  float uniform() { return static_cast<float>(uniform_bits() >> 40) * 0x1.0p-24f; }
 };
 
 /// A spinning LiDAR over a track. Holds one Embree mesh per cone class and every cone's class

@@ -522,8 +522,7 @@ void SensorRig::end_sweep() {
   pending_delivery_us_ = end + lidar_latency_us_;
   pending_parts_ = std::move(posted_parts_);
   posted_parts_.clear();
-  // the last part, then the cone detector on the same thread, with the motion the autonomy
-  // estimates now
+  // the last part, then the cone detector, with the motion the autonomy estimates now
   const slam::frontend::LidarConeDetector* detector =
       perception_ ? perception_->lidar_detector() : nullptr;
   // or a perception plug-in in its place: on the worker when it has only the LiDAR; one with
@@ -534,9 +533,14 @@ void SensorRig::end_sweep() {
   const slam::frontend::SweepMotion motion =
       perception_ ? perception_->motion() : slam::frontend::SweepMotion{};
   const int64_t index = start / lidar_->config().sweep_period_us();
+  // the detector runs on whichever thread comes to it first: the worker once the sweep is cast,
+  // or the loop when it collects the sweep before then (the worker then goes on to the next
+  // sweep's parts); the detections are the same either way
+  pending_detect_claim_ = std::make_shared<std::atomic<bool>>(false);
   pending_scan_ =
       worker_->post([this, sweep = casting_, start, begin, columns, detector, plugin, motion, end,
-                     index, window = pose_window(lidar_->column_time(start, begin), end)] {
+                     index, claim = pending_detect_claim_,
+                     window = pose_window(lidar_->column_time(start, begin), end)] {
         sweep->cast(*lidar_, lidar_rng_, start, begin, columns, window);
         SweepResult r{std::move(sweep->scan),
                       std::nullopt,
@@ -555,7 +559,7 @@ void SensorRig::end_sweep() {
           if (r.lost) return r;
           faults_.apply_lidar(r.scan.cloud, r.scan.labels, r.fault_counts);
         }
-        if (detector) {
+        if (detector && !claim->exchange(true)) {
           const auto t0 = clock::now();
           r.detections = detector->detect(r.scan.cloud, motion, end);
           r.detect_ms = ms_between(t0, clock::now());
@@ -590,6 +594,8 @@ void SensorRig::restart_sweep() {
 void SensorRig::collect_sweep() {
   for (std::future<void>& part : pending_parts_) part.get();
   pending_parts_.clear();
+  const bool detect_here = pending_detect_claim_ && !pending_detect_claim_->exchange(true);
+  pending_detect_claim_.reset();
   SweepResult result = pending_scan_.get();
   const sensors::LidarScan& scan = result.scan;
   stats_.lidar_ms_total += result.cast_ms;
@@ -602,6 +608,13 @@ void SensorRig::collect_sweep() {
     return;
   }
   if (labelled_ && labelled_->wants_lidar()) labelled_->on_lidar(result.end_us, scan);
+  const slam::frontend::LidarConeDetector* detector =
+      perception_ ? perception_->lidar_detector() : nullptr;
+  if (detect_here && detector) {
+    const auto t0 = clock::now();
+    result.detections = detector->detect(scan.cloud, result.motion, result.end_us);
+    result.detect_ms = ms_between(t0, clock::now());
+  }
 
   // the tap gets the sweep as a perception plug-in does, when its latency has passed
   if (tap_ && tap_->kinds().lidar &&

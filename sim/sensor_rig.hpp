@@ -3,6 +3,7 @@
 // camera, each on its own schedule on the sim clock, with their dumps. The run loop calls
 // step() after every physics step and takes the delivered cone detections.
 
+#include <atomic>
 #include <deque>
 #include <filesystem>
 #include <functional>
@@ -230,6 +231,8 @@ class SensorRig {
     FaultCounts fault_counts;
   };
   std::future<SweepResult> pending_scan_;
+  // set by the thread that runs the pending sweep's cone detector (end_sweep())
+  std::shared_ptr<std::atomic<bool>> pending_detect_claim_;
   std::vector<std::future<void>> pending_parts_;
   // when the sweep in flight reaches SLAM (its end plus the perception latency)
   core::TimeUs pending_delivery_us_ = 0;
