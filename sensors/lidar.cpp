@@ -1003,9 +1003,9 @@ void Lidar::Impl::build_beams() {
 
   // the beam's spot and the fading of weak returns
   const double divergence_rad = config.beam_divergence_mrad * 1e-3;
-  spot_offset = static_cast<float>(std::tan(divergence_rad / 3.0));
-  spot_scale =
-      static_cast<float>(1.0 / std::sqrt(1.0 + std::pow(std::tan(divergence_rad / 3.0), 2)));
+  const double offset = std::tan(divergence_rad / 3.0);
+  spot_offset = static_cast<float>(offset);
+  spot_scale = static_cast<float>(1.0 / std::sqrt(1.0 + offset * offset));
   // (a ray's range over its horizontal distance is at most 1 / cos of the steepest beam)
   double steepest_deg = 0.0;
   for (double e : config.elevations_deg) steepest_deg = std::max(steepest_deg, std::abs(e));

@@ -559,11 +559,7 @@ void SensorRig::end_sweep() {
           if (r.lost) return r;
           faults_.apply_lidar(r.scan.cloud, r.scan.labels, r.fault_counts);
         }
-        if (detector && !claim->exchange(true)) {
-          const auto t0 = clock::now();
-          r.detections = detector->detect(r.scan.cloud, motion, end);
-          r.detect_ms = ms_between(t0, clock::now());
-        }
+        if (detector && !claim->exchange(true)) r.detect_with(*detector);
         if (plugin) {
           const auto t0 = clock::now();
           try {
@@ -591,6 +587,12 @@ void SensorRig::restart_sweep() {
   columns_posted_ = 0;
 }
 
+void SensorRig::SweepResult::detect_with(const slam::frontend::LidarConeDetector& detector) {
+  const auto t0 = clock::now();
+  detections = detector.detect(scan.cloud, motion, end_us);
+  detect_ms = ms_between(t0, clock::now());
+}
+
 void SensorRig::collect_sweep() {
   for (std::future<void>& part : pending_parts_) part.get();
   pending_parts_.clear();
@@ -610,11 +612,7 @@ void SensorRig::collect_sweep() {
   if (labelled_ && labelled_->wants_lidar()) labelled_->on_lidar(result.end_us, scan);
   const slam::frontend::LidarConeDetector* detector =
       perception_ ? perception_->lidar_detector() : nullptr;
-  if (detect_here && detector) {
-    const auto t0 = clock::now();
-    result.detections = detector->detect(scan.cloud, result.motion, result.end_us);
-    result.detect_ms = ms_between(t0, clock::now());
-  }
+  if (detect_here && detector) result.detect_with(*detector);
 
   // the tap gets the sweep as a perception plug-in does, when its latency has passed
   if (tap_ && tap_->kinds().lidar &&

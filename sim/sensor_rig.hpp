@@ -229,6 +229,8 @@ class SensorRig {
     // the faults: the sweep lost before perception, and what they did to it
     bool lost = false;
     FaultCounts fault_counts;
+    // runs the LiDAR cone detector on the sweep (its end and motion), timed
+    void detect_with(const slam::frontend::LidarConeDetector& detector);
   };
   std::future<SweepResult> pending_scan_;
   // set by the thread that runs the pending sweep's cone detector (end_sweep())
