@@ -1,7 +1,8 @@
 // The LiDAR cone detector. One pass per sweep:
 //   de-skew  -> every point moved to the vehicle frame at the sweep's end,
 //   ground   -> a plane fitted to the low points, heights measured from it,
-//   clusters -> a grid over the ground-projected points, neighbours linked by distance,
+//   clusters -> a grid over the ground-projected points, neighbours linked by distance; a
+//               cluster that may be a row of cones whose bases touch is cut into cones,
 //   cones    -> size and point-count checks, the centre fitted to the visible surface with the
 //               known radius at each point's height, the class from the intensities along the
 //               height, and a covariance from the range noise and the number of points.
@@ -461,6 +462,170 @@ Vector2d fit_centre(const std::vector<RaisedPoint>& points, std::span<const int>
   return (c - start).norm() > 1.5 * mean_radius ? start : c;
 }
 
+// A cluster cut into k cones: each point's cone and what the cut costs.
+struct RowCut {
+  std::vector<int> cone_of;  // per point of the cluster
+  double cost = std::numeric_limits<double>::infinity();
+  double chi2 = 0.0;        // the residuals' part of the cost
+  double lowest_top = 0.0;  // the lowest of the cones' tops above the ground, metres
+};
+
+// The pieces of a cut, each in the cluster's order.
+void gather_pieces(std::span<const int> cluster, const std::vector<int>& cone_of, int k,
+                   Clusters& pieces) {
+  pieces.members.resize(cluster.size());
+  pieces.offsets.assign(static_cast<size_t>(k) + 1, 0);
+  for (const int j : cone_of) ++pieces.offsets[static_cast<size_t>(j) + 1];
+  for (int j = 0; j < k; ++j) pieces.offsets[j + 1] += pieces.offsets[j];
+  std::vector<int> next(pieces.offsets.begin(), pieces.offsets.end() - 1);
+  for (size_t m = 0; m < cluster.size(); ++m) pieces.members[next[cone_of[m]]++] = cluster[m];
+}
+
+// The best cut of a cluster into k cones: started from 1-D k-means of the points' positions
+// `along` its long axis, then on the cones' shapes: each cone's centre fitted to its points
+// (big when their top is above a small cone), each point given to the cone whose surface it
+// lies nearest, until no point moves (the nearer cone hides part of the farther one, so the cut
+// is not where the axis halves the points). Its cost: the squared surface residuals over
+// sigma^2 (each at most 9, so that a stray return does not ask for a cone of its own), plus
+// BIC's 2 ln n per cone (two unknowns each); infinite when a cone has too few points or two
+// cones overlap.
+RowCut cut_row(const std::vector<RaisedPoint>& points, std::span<const int> cluster,
+               const std::vector<double>& along, int k, const LidarDetectorConfig& config,
+               const core::ConeGeometry& small, const core::ConeGeometry& big,
+               const Vector2d& sensor_xy, std::vector<double>& radius, Clusters& pieces) {
+  const size_t n = cluster.size();
+  RowCut cut;
+  cut.cone_of.assign(n, 0);
+  // 1-D k-means from evenly spaced centres (nearest centre, ties to the lower one)
+  const auto [s_lo, s_hi] = std::minmax_element(along.begin(), along.end());
+  std::vector<double> centre(static_cast<size_t>(k)), sum(centre.size());
+  std::vector<int> count(centre.size());
+  for (int j = 0; j < k; ++j) centre[j] = *s_lo + (j + 0.5) * (*s_hi - *s_lo) / k;
+  for (int iteration = 0; iteration < 20; ++iteration) {
+    std::fill(sum.begin(), sum.end(), 0.0);
+    std::fill(count.begin(), count.end(), 0);
+    for (size_t m = 0; m < n; ++m) {
+      int best = 0;
+      for (int j = 1; j < k; ++j)
+        if (std::abs(along[m] - centre[j]) < std::abs(along[m] - centre[best])) best = j;
+      cut.cone_of[m] = best, sum[best] += along[m], ++count[best];
+    }
+    bool moved = false;
+    for (int j = 0; j < k; ++j) {
+      const double next = count[j] ? sum[j] / count[j] : centre[j];
+      moved = moved || next != centre[j];
+      centre[j] = next;
+    }
+    if (!moved) break;
+  }
+  // then on the shapes
+  const double sigma =
+      std::hypot(config.range_noise_sigma_m, config.model_sigma_m, config.height_sigma_m);
+  std::vector<Vector2d> centres(static_cast<size_t>(k));
+  std::vector<const core::ConeGeometry*> shapes(static_cast<size_t>(k));
+  for (int round = 0; round < 6; ++round) {
+    gather_pieces(cluster, cut.cone_of, k, pieces);
+    cut.lowest_top = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < k; ++j) {
+      const std::span<const int> members = pieces[j];
+      if (static_cast<int>(members.size()) < config.min_cluster_points) return cut;
+      double top = 0.0;
+      for (const int i : members) top = std::max(top, points[i].height_m);
+      cut.lowest_top = std::min(cut.lowest_top, top);
+      shapes[j] = top >= config.big_cone_min_height_m ? &big : &small;
+      centres[j] = fit_centre(points, members, *shapes[j], sensor_xy, radius);
+    }
+    // cones stand on their plates: two centres are at least a small plate's width apart (less
+    // the fits' errors), else the cut has made two cones of one
+    for (int j = 0; j < k; ++j)
+      for (int l = j + 1; l < k; ++l)
+        if ((centres[j] - centres[l]).norm() < 0.8 * small.base_width_m) {
+          cut.cost = std::numeric_limits<double>::infinity();
+          return cut;
+        }
+    bool moved = false;
+    double chi2 = 0.0;
+    for (size_t m = 0; m < n; ++m) {
+      const RaisedPoint& p = points[cluster[m]];
+      int best = cut.cone_of[m];
+      double best_residual = std::numeric_limits<double>::infinity();
+      for (int j = 0; j < k; ++j) {
+        const double residual =
+            std::abs((p.foot - centres[j]).norm() - body_radius(*shapes[j], p.height_m));
+        if (residual < best_residual) best = j, best_residual = residual;
+      }
+      chi2 += std::min(9.0, best_residual * best_residual / (sigma * sigma));
+      moved = moved || best != cut.cone_of[m];
+      cut.cone_of[m] = best;
+    }
+    cut.chi2 = chi2;
+    cut.cost = chi2 + 2.0 * k * std::log(static_cast<double>(n));
+    if (!moved) break;
+  }
+  return cut;
+}
+
+// A cluster that may be a row of cones whose bases touch (a start gate's big orange cones stand
+// 0.26-0.30 m apart, centre to centre), which link into one cluster: one wider than a cone, or
+// deeper along the line of sight than a cone's visible half, and narrower than
+// config.max_row_cones cones. Cut into the number of cones (one to max_row_cones) whose cut
+// costs least; true with the pieces (each in the cluster's order) when that is more than one.
+bool split_row(const std::vector<RaisedPoint>& points, std::span<const int> cluster,
+               const LidarDetectorConfig& config, const core::ConeGeometry& small,
+               const core::ConeGeometry& big, const Vector2d& sensor_xy,
+               std::vector<double>& radius, Clusters& pieces) {
+  if (config.max_row_cones < 2 || static_cast<int>(cluster.size()) < 2 * config.min_cluster_points)
+    return false;
+  Vector2d lo = Vector2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  Vector2d mean = Vector2d::Zero();
+  for (const int i : cluster) {
+    lo = lo.cwiseMin(points[i].foot);
+    hi = hi.cwiseMax(points[i].foot);
+    mean += points[i].foot;
+  }
+  mean /= static_cast<double>(cluster.size());
+  const double extent = (hi - lo).norm();
+  if (extent > config.max_cluster_extent_m + (config.max_row_cones - 1) * big.base_width_m)
+    return false;
+  // a cone's visible points lie within its base radius of its front, along the line of sight
+  // (plus the range noise's spread)
+  const Vector2d ray = (mean - sensor_xy).normalized();
+  double near = std::numeric_limits<double>::infinity(), far = -near;
+  for (const int i : cluster) {
+    const double depth = ray.dot(points[i].foot - mean);
+    near = std::min(near, depth), far = std::max(far, depth);
+  }
+  const double deepest_cone = 0.5 * 0.8 * big.base_width_m + 6.0 * config.range_noise_sigma_m;
+  if (extent <= config.max_cluster_extent_m && far - near <= deepest_cone) return false;
+  // the long axis: the principal direction of the feet
+  double sxx = 0.0, sxy = 0.0, syy = 0.0;
+  for (const int i : cluster) {
+    const Vector2d d = points[i].foot - mean;
+    sxx += d.x() * d.x(), sxy += d.x() * d.y(), syy += d.y() * d.y();
+  }
+  const double angle = 0.5 * std::atan2(2.0 * sxy, sxx - syy);
+  const Vector2d axis(std::cos(angle), std::sin(angle));
+  std::vector<double> along(cluster.size());
+  for (size_t m = 0; m < cluster.size(); ++m) along[m] = axis.dot(points[cluster[m]].foot - mean);
+  int best_k = 1;
+  RowCut best;
+  for (int k = 1; k <= config.max_row_cones; ++k) {
+    RowCut cut = cut_row(points, cluster, along, k, config, small, big, sensor_xy, radius, pieces);
+    if (cut.cost < best.cost) best = std::move(cut), best_k = k;
+  }
+  // a row of cones shows each cone's body (feet of fences and tents, kerbs do not), and its
+  // points lie on the cones' surfaces within the noise: the residuals' mean (each squared
+  // residual over sigma^2 about 1 on a cone, with the standard error sqrt(2 / n) of the mean)
+  // within 0.5 for the model's error and four standard errors (tyre stacks, barriers and
+  // people fit no row of cones that well)
+  const double n = static_cast<double>(cluster.size());
+  if (best_k == 1 || best.lowest_top < 0.5 * small.height_m ||
+      best.chi2 / n > 1.5 + 4.0 * std::sqrt(2.0 / n))
+    return false;
+  gather_pieces(cluster, best.cone_of, best_k, pieces);
+  return true;
+}
+
 // Log-likelihood of a shape from the width of each ring's points across the line of sight:
 // a ring crossing the body at height h spans its full width 2 r(h), less on average one
 // column step (the edge columns fall anywhere within a step of the silhouette), with a
@@ -687,6 +852,8 @@ std::string LidarDetectorConfig::validate() const {
   if (e.tellp() == 0 && min_cluster_points < 1)
     e << "min_cluster_points: expected >= 1, got " << min_cluster_points;
   positive("max_cluster_extent_m", max_cluster_extent_m);
+  if (e.tellp() == 0 && (max_row_cones < 1 || max_row_cones > 8))
+    e << "max_row_cones: expected 1 to 8, got " << max_row_cones;
   non_negative("min_cone_height_m", min_cone_height_m);
   if (e.tellp() == 0 && max_cone_height_m <= min_cone_height_m)
     e << "max_cone_height_m: expected > min_cone_height_m, got " << max_cone_height_m;
@@ -897,8 +1064,9 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud, const S
   // buffers kept over the clusters
   std::vector<double> radius;
   PaintScratch paint;
-  for (int k = 0; k < clusters.size(); ++k) {
-    const std::span<const int> cluster = clusters[k];
+  Clusters pieces;
+  // one cluster validated, fitted and classified: a cone in out.cones, or one more rejected
+  auto detect_cone = [&](std::span<const int> cluster) {
     // size: point count, extent on the ground, top above the ground
     Vector2d lo = Vector2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
     double top = 0.0, top_range = 0.0;
@@ -913,7 +1081,7 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud, const S
         (hi - lo).norm() > c.max_cluster_extent_m || top < c.min_cone_height_m ||
         top > c.max_cone_height_m) {
       ++out.rejected_clusters;
-      continue;
+      return;
     }
 
     // small or big: a top above a small cone's height is big; a top below it is small when the
@@ -929,7 +1097,7 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud, const S
     // the ring above would have met any cone standing here, and left nothing: not a cone
     if (next_ring_height < small.height_m - c.ring_above_margin_m) {
       ++out.rejected_clusters;
-      continue;
+      return;
     }
     const bool small_by_rings = !big_by_height && next_ring_height < big.height_m - 0.02;
     bool may_be_small = !big_by_height;
@@ -970,6 +1138,14 @@ LidarDetections LidarConeDetector::detect(const core::PointCloud& cloud, const S
     cone.point_indices.reserve(cluster.size());
     for (const int i : cluster) cone.point_indices.push_back(raised[i].index);
     out.cones.push_back(std::move(cone));
+  };
+  for (int k = 0; k < clusters.size(); ++k) {
+    // cones whose bases touch (a gate's cones in a row) link into one cluster: a cluster too
+    // wide for one cone is tried as a row of them, each piece validated as a cone on its own
+    if (split_row(raised, clusters[k], c, small, big, sensor_xy, radius, pieces))
+      for (int j = 0; j < pieces.size(); ++j) detect_cone(pieces[j]);
+    else
+      detect_cone(clusters[k]);
   }
   return out;
 }

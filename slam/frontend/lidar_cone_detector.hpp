@@ -56,6 +56,12 @@ struct LidarDetectorConfig {
   int min_cluster_points = 3;
   /// Widest ground-projected extent of a cone's points, metres (big cone plate 0.285 m).
   double max_cluster_extent_m = 0.45;
+  /// Cones whose bases touch (a start gate's big orange cones stand 0.26-0.30 m apart) link
+  /// into one cluster: a cluster wider than one cone (or deeper along the line of sight than a
+  /// cone's visible half), by less than this many cones less one, is cut into the number of
+  /// cones, up to this many, whose surfaces explain its points best; each piece is then
+  /// validated as a cone. 1 turns the cut off.
+  int max_row_cones = 3;
   /// Lowest and highest top of a cone's points above the ground, metres.
   double min_cone_height_m = 0.05;
   double max_cone_height_m = 0.6;
