@@ -339,29 +339,73 @@ std::vector<PlotData> lidar_review_data(const PlotData& ground, const PlotData& 
 
 }  // namespace
 
-// A LiDAR sweep being cast on the worker a part at a time: the worker's alone while parts of
-// it are queued.
-struct SensorRig::SweepInProgress {
+// A part of a LiDAR sweep (a run of columns), cast on whichever thread claims it first: the
+// worker as the parts are queued, or the loop when it needs the sweep before the worker has come
+// to the part. Its noise comes from the sweep's seed and the part's index alone, so the points
+// are the same whichever thread casts it.
+struct SensorRig::SweepPart {
+  int index = 0, begin = 0, end = 0;
+  sensors::PoseHistory window;
+  std::atomic<bool> claimed{false};
+  std::atomic<bool> done{false};
   sensors::LidarScan scan;
-  // the noise, started at the sweep's first column, and the generator as it was then (a cone
-  // knocked over during the sweep makes it start again)
-  std::optional<sensors::LidarNoise> noise;
-  core::Rng rng_at_start;
   double cast_ms = 0.0;
+  std::exception_ptr error;
 
-  // casts the columns [begin, end) (on the worker)
-  void cast(const sensors::Lidar& lidar, core::Rng& rng, TimeUs start, int begin, int end,
-            const sensors::PoseHistory& poses) {
+  // casts the part unless another thread has claimed it
+  void cast(const sensors::Lidar& lidar, uint64_t sweep_seed, TimeUs start) {
+    if (claimed.exchange(true)) return;
     const auto t0 = clock::now();
-    if (begin == 0) {
-      rng_at_start = rng;
-      noise.emplace(rng);
+    try {
+      core::Rng rng(core::derive_seed(sweep_seed, static_cast<uint64_t>(index)));
+      sensors::LidarNoise noise(rng);
+      lidar.sweep_columns(start, begin, end, window, noise, scan);
+    } catch (...) {
+      error = std::current_exception();
     }
-    if (!noise) throw std::logic_error("lidar sweep: a part was cast before the sweep's start");
-    lidar.sweep_columns(start, begin, end, poses, *noise, scan);
-    cast_ms += ms_between(t0, clock::now());
+    cast_ms = ms_between(t0, clock::now());
+    done.store(true);
+    done.notify_all();
+  }
+
+  // waits until the part is cast (by whichever thread), rethrowing its error
+  void wait() const {
+    done.wait(false);
+    if (error) std::rethrow_exception(error);
   }
 };
+
+// A LiDAR sweep being cast a part at a time as its columns fire (the loop's alone; the parts are
+// shared with the threads that cast them).
+struct SensorRig::SweepInProgress {
+  explicit SweepInProgress(uint64_t seed_) : seed(seed_) {}
+  // the noise's seed (part k draws from derive_seed(seed, k))
+  uint64_t seed;
+  std::vector<std::shared_ptr<SweepPart>> parts;
+};
+
+sensors::LidarScan SensorRig::join_parts(const std::vector<std::shared_ptr<SweepPart>>& parts,
+                                         double& cast_ms) {
+  for (const auto& part : parts) part->wait();
+  sensors::LidarScan scan = std::move(parts.front()->scan);  // (room for the whole sweep)
+  cast_ms = parts.front()->cast_ms;
+  for (size_t k = 1; k < parts.size(); ++k) {
+    const sensors::LidarScan& piece = parts[k]->scan;
+    scan.cloud.points.insert(scan.cloud.points.end(), piece.cloud.points.begin(),
+                             piece.cloud.points.end());
+    scan.labels.cone_id.insert(scan.labels.cone_id.end(), piece.labels.cone_id.begin(),
+                               piece.labels.cone_id.end());
+    scan.labels.sensor_pose_end = piece.labels.sensor_pose_end;
+    scan.stats.rays += piece.stats.rays;
+    scan.stats.hits += piece.stats.hits;
+    scan.stats.dropped += piece.stats.dropped;
+    scan.stats.faded += piece.stats.faded;
+    scan.stats.out_of_range += piece.stats.out_of_range;
+    scan.stats.traced += piece.stats.traced;
+    cast_ms += parts[k]->cast_ms;
+  }
+  return scan;
+}
 
 SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const VehicleSim& car,
                      const DumpOptions& dump, const fs::path& run_dir, SensorTap* tap,
@@ -409,7 +453,7 @@ SensorRig::SensorRig(const Scenario& s, const tracks::Track& track, const Vehicl
     poses_ = sensors::PoseHistory(2 * config.sweep_period_us());
     poses_.push(0, car.vehicle_pose3());
     lidar_latency_us_ = core::from_seconds(s.sensors.lidar_latency_s);
-    casting_ = std::make_shared<SweepInProgress>();
+    casting_ = std::make_shared<SweepInProgress>(lidar_rng_());
     worker_ = std::make_unique<WorkerThread>();
   }
 
@@ -500,16 +544,22 @@ void SensorRig::cast_columns(TimeUs t) {
   const int part = kBlocksPerPart * lidar_->column_block();
   for (int end = columns_posted_ + part; end < columns; end += part) {
     if (lidar_->column_time(sweep_start_, end - 1) > t) return;
-    const int begin = columns_posted_;
-    const TimeUs start = sweep_start_;
-    posted_parts_.push_back(
-        worker_->post([this, sweep = casting_, start, begin, end,
-                       window = pose_window(lidar_->column_time(start, begin),
-                                            lidar_->column_time(start, end - 1))] {
-          sweep->cast(*lidar_, lidar_rng_, start, begin, end, window);
-        }));
+    post_part(columns_posted_, end);
     columns_posted_ = end;
   }
+}
+
+void SensorRig::post_part(int begin, int end) {
+  auto part = std::make_shared<SweepPart>();
+  part->index = static_cast<int>(casting_->parts.size());
+  part->begin = begin;
+  part->end = end;
+  part->window = pose_window(lidar_->column_time(sweep_start_, begin),
+                             lidar_->column_time(sweep_start_, end - 1));
+  casting_->parts.push_back(part);
+  worker_->post([this, part, seed = casting_->seed, start = sweep_start_] {
+    part->cast(*lidar_, seed, start);
+  });
 }
 
 void SensorRig::end_sweep() {
@@ -517,11 +567,13 @@ void SensorRig::end_sweep() {
   if (pending_scan_.valid()) collect_sweep();
   const TimeUs start = sweep_start_;
   const TimeUs end = lidar_->sweep_end(start);
-  const int begin = columns_posted_;
   const int columns = lidar_->config().columns;
   pending_delivery_us_ = end + lidar_latency_us_;
-  pending_parts_ = std::move(posted_parts_);
-  posted_parts_.clear();
+  // the last part, then the sweep: cast on the worker unless the loop collects it first
+  post_part(columns_posted_, columns);
+  pending_parts_ = casting_->parts;
+  pending_seed_ = casting_->seed;
+  pending_start_ = start;
   // the last part, then the cone detector, with the motion the autonomy estimates now
   const slam::frontend::LidarConeDetector* detector =
       perception_ ? perception_->lidar_detector() : nullptr;
@@ -537,53 +589,44 @@ void SensorRig::end_sweep() {
   // or the loop when it collects the sweep before then (the worker then goes on to the next
   // sweep's parts); the detections are the same either way
   pending_detect_claim_ = std::make_shared<std::atomic<bool>>(false);
-  pending_scan_ =
-      worker_->post([this, sweep = casting_, start, begin, columns, detector, plugin, motion, end,
-                     index, claim = pending_detect_claim_,
-                     window = pose_window(lidar_->column_time(start, begin), end)] {
-        sweep->cast(*lidar_, lidar_rng_, start, begin, columns, window);
-        SweepResult r{std::move(sweep->scan),
-                      std::nullopt,
-                      sweep->cast_ms,
-                      0.0,
-                      std::nullopt,
-                      {},
-                      end,
-                      motion,
-                      false,
-                      faults_.zero_counts()};
-        // the faults: a lost sweep never reaches perception; dropout and blind sectors take
-        // points before the detector sees them
-        if (!faults_.empty()) {
-          r.lost = faults_.lidar_sweep_lost(index, end, r.fault_counts);
-          if (r.lost) return r;
-          faults_.apply_lidar(r.scan.cloud, r.scan.labels, r.fault_counts);
-        }
-        if (detector && !claim->exchange(true)) r.detect_with(*detector);
-        if (plugin) {
-          const auto t0 = clock::now();
-          try {
-            r.plugin_frame = plugin->plugin_lidar(r.scan.cloud, end, motion);
-          } catch (const PluginFailure& e) {
-            r.plugin_failure = e.what();
-          }
-          r.detect_ms = ms_between(t0, clock::now());
-        }
-        return r;
-      });
+  pending_scan_ = worker_->post([this, sweep = casting_, detector, plugin, motion, end, index,
+                                 claim = pending_detect_claim_] {
+    SweepResult r;
+    r.scan = join_parts(sweep->parts, r.cast_ms);
+    r.end_us = end;
+    r.motion = motion;
+    r.fault_counts = faults_.zero_counts();
+    // the faults: a lost sweep never reaches perception; dropout and blind sectors take
+    // points before the detector sees them
+    if (!faults_.empty()) {
+      r.lost = faults_.lidar_sweep_lost(index, end, r.fault_counts);
+      if (r.lost) return r;
+      faults_.apply_lidar(r.scan.cloud, r.scan.labels, r.fault_counts);
+    }
+    if (detector && !claim->exchange(true)) r.detect_with(*detector);
+    if (plugin) {
+      const auto t0 = clock::now();
+      try {
+        r.plugin_frame = plugin->plugin_lidar(r.scan.cloud, end, motion);
+      } catch (const PluginFailure& e) {
+        r.plugin_failure = e.what();
+      }
+      r.detect_ms = ms_between(t0, clock::now());
+    }
+    return r;
+  });
 
   // the next sweep
   sweep_start_ += lidar_->config().sweep_period_us();
-  casting_ = std::make_shared<SweepInProgress>();
+  casting_ = std::make_shared<SweepInProgress>(lidar_rng_());
   columns_posted_ = 0;
 }
 
 void SensorRig::restart_sweep() {
-  // the worker is idle: the sweep being cast is dropped and its noise drawn again
-  for (std::future<void>& part : posted_parts_) part.get();
-  posted_parts_.clear();
-  if (columns_posted_ > 0) lidar_rng_ = casting_->rng_at_start;
-  casting_ = std::make_shared<SweepInProgress>();
+  // the worker is idle: the sweep being cast is dropped and its noise drawn again (the same
+  // seed); a part that failed says so
+  for (const auto& part : casting_->parts) part->wait();
+  casting_ = std::make_shared<SweepInProgress>(casting_->seed);
   columns_posted_ = 0;
 }
 
@@ -594,7 +637,8 @@ void SensorRig::SweepResult::detect_with(const slam::frontend::LidarConeDetector
 }
 
 void SensorRig::collect_sweep() {
-  for (std::future<void>& part : pending_parts_) part.get();
+  // the parts the worker has not come to are cast here (the loop would wait for them anyway)
+  for (const auto& part : pending_parts_) part->cast(*lidar_, pending_seed_, pending_start_);
   pending_parts_.clear();
   const bool detect_here = pending_detect_claim_ && !pending_detect_claim_->exchange(true);
   pending_detect_claim_.reset();

@@ -160,8 +160,11 @@ class SensorRig {
   void finish();
 
  private:
+  struct SweepPart;
   struct SweepInProgress;
   void cast_columns(core::TimeUs t);
+  // queues the columns [begin, end) of the sweep being cast as its next part
+  void post_part(int begin, int end);
   void end_sweep();
   void restart_sweep();
   sensors::PoseHistory pose_window(core::TimeUs from, core::TimeUs to) const;
@@ -208,12 +211,10 @@ class SensorRig {
   sensors::PoseHistory poses_;
   core::Rng lidar_rng_;
   core::TimeUs sweep_start_ = 0;
-  // the sweep being cast: the worker casts its columns a part at a time as their poses arrive,
-  // in order, so that the noise sequence and the points are those of one sweep cast at its end
+  // the sweep being cast: the worker casts its columns a part at a time as their poses arrive
   std::shared_ptr<SweepInProgress> casting_;
-  // columns of it handed to the worker, and the futures of those parts (errors come through)
+  // columns of it handed to the worker
   int columns_posted_ = 0;
-  std::vector<std::future<void>> posted_parts_;
   // the sweep that has ended, finishing and detecting on the worker (one at a time)
   struct SweepResult {
     sensors::LidarScan scan;
@@ -232,10 +233,17 @@ class SensorRig {
     // runs the LiDAR cone detector on the sweep (its end and motion), timed
     void detect_with(const slam::frontend::LidarConeDetector& detector);
   };
+  // the sweep of its parts once cast, in column order, and the time they took
+  static sensors::LidarScan join_parts(const std::vector<std::shared_ptr<SweepPart>>& parts,
+                                       double& cast_ms);
   std::future<SweepResult> pending_scan_;
   // set by the thread that runs the pending sweep's cone detector (end_sweep())
   std::shared_ptr<std::atomic<bool>> pending_detect_claim_;
-  std::vector<std::future<void>> pending_parts_;
+  // its parts (the loop casts those the worker has not come to when it collects the sweep),
+  // its noise's seed and its start
+  std::vector<std::shared_ptr<SweepPart>> pending_parts_;
+  uint64_t pending_seed_ = 0;
+  core::TimeUs pending_start_ = 0;
   // when the sweep in flight reaches SLAM (its end plus the perception latency)
   core::TimeUs pending_delivery_us_ = 0;
   core::TimeUs lidar_latency_us_ = 0;
