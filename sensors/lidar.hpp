@@ -42,6 +42,13 @@ struct LidarSweepStats {
   /// Rays cast through Embree (the meshes of the standing cones they pass near); the others
   /// can only meet the ground, which is intersected directly.
   int64_t traced = 0;
+
+  /// Adds the counts of another part of the sweep.
+  LidarSweepStats& operator+=(const LidarSweepStats& o) {
+    rays += o.rays, hits += o.hits, dropped += o.dropped, faded += o.faded;
+    out_of_range += o.out_of_range, traced += o.traced;
+    return *this;
+  }
 };
 
 /// One sweep: the data the system under test receives and the ground truth beside it.
@@ -54,7 +61,9 @@ struct LidarScan {
 /// The noise of a sweep cast in parts (Lidar::sweep_columns): the normal sampler with the
 /// samples it holds and the generator of the uniform draws (dropout, fading), both seeded from
 /// the sweep's generator when the sweep starts and carried from one part to the next, so that the
-/// parts draw the same numbers as one sweep() does.
+/// parts draw the same numbers as one sweep() does. (A caller that casts parts on several threads
+/// gives each part its own noise instead, seeded from the sweep's seed and the part's index, as
+/// sim/sensor_rig.cpp does.)
 struct LidarNoise {
   explicit LidarNoise(core::Rng& generator) : normal(generator), uniform_bits(generator) {}
   core::ZigguratNormals normal;

@@ -396,12 +396,7 @@ sensors::LidarScan SensorRig::join_parts(const std::vector<std::shared_ptr<Sweep
     scan.labels.cone_id.insert(scan.labels.cone_id.end(), piece.labels.cone_id.begin(),
                                piece.labels.cone_id.end());
     scan.labels.sensor_pose_end = piece.labels.sensor_pose_end;
-    scan.stats.rays += piece.stats.rays;
-    scan.stats.hits += piece.stats.hits;
-    scan.stats.dropped += piece.stats.dropped;
-    scan.stats.faded += piece.stats.faded;
-    scan.stats.out_of_range += piece.stats.out_of_range;
-    scan.stats.traced += piece.stats.traced;
+    scan.stats += piece.stats;
     cast_ms += parts[k]->cast_ms;
   }
   return scan;

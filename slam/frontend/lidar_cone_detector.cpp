@@ -528,7 +528,10 @@ RowCut cut_row(const std::vector<RaisedPoint>& points, std::span<const int> clus
     cut.lowest_top = std::numeric_limits<double>::infinity();
     for (int j = 0; j < k; ++j) {
       const std::span<const int> members = pieces[j];
-      if (static_cast<int>(members.size()) < config.min_cluster_points) return cut;
+      if (static_cast<int>(members.size()) < config.min_cluster_points) {
+        cut.cost = std::numeric_limits<double>::infinity();
+        return cut;
+      }
       double top = 0.0;
       for (const int i : members) top = std::max(top, points[i].height_m);
       cut.lowest_top = std::min(cut.lowest_top, top);
@@ -587,15 +590,15 @@ bool split_row(const std::vector<RaisedPoint>& points, std::span<const int> clus
   const double extent = (hi - lo).norm();
   if (extent > config.max_cluster_extent_m + (config.max_row_cones - 1) * big.base_width_m)
     return false;
-  // a cone's visible points lie within its base radius of its front, along the line of sight
-  // (plus the range noise's spread)
+  // a cone's visible points lie within its body's bottom radius of its front, along the line of
+  // sight (plus the range noise's spread)
   const Vector2d ray = (mean - sensor_xy).normalized();
   double near = std::numeric_limits<double>::infinity(), far = -near;
   for (const int i : cluster) {
     const double depth = ray.dot(points[i].foot - mean);
     near = std::min(near, depth), far = std::max(far, depth);
   }
-  const double deepest_cone = 0.5 * 0.8 * big.base_width_m + 6.0 * config.range_noise_sigma_m;
+  const double deepest_cone = body_radius(big, 0.0) + 6.0 * config.range_noise_sigma_m;
   if (extent <= config.max_cluster_extent_m && far - near <= deepest_cone) return false;
   // the long axis: the principal direction of the feet
   double sxx = 0.0, sxy = 0.0, syy = 0.0;
