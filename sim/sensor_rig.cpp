@@ -344,6 +344,9 @@ std::vector<PlotData> lidar_review_data(const PlotData& ground, const PlotData& 
 // to the part. Its noise comes from the sweep's seed and the part's index alone, so the points
 // are the same whichever thread casts it.
 struct SensorRig::SweepPart {
+  // the sweep's start and noise seed, the part's index in it and its columns [begin, end)
+  TimeUs start = 0;
+  uint64_t sweep_seed = 0;
   int index = 0, begin = 0, end = 0;
   sensors::PoseHistory window;
   std::atomic<bool> claimed{false};
@@ -353,7 +356,7 @@ struct SensorRig::SweepPart {
   std::exception_ptr error;
 
   // casts the part unless another thread has claimed it
-  void cast(const sensors::Lidar& lidar, uint64_t sweep_seed, TimeUs start) {
+  void cast(const sensors::Lidar& lidar) {
     if (claimed.exchange(true)) return;
     const auto t0 = clock::now();
     try {
@@ -546,15 +549,15 @@ void SensorRig::cast_columns(TimeUs t) {
 
 void SensorRig::post_part(int begin, int end) {
   auto part = std::make_shared<SweepPart>();
+  part->start = sweep_start_;
+  part->sweep_seed = casting_->seed;
   part->index = static_cast<int>(casting_->parts.size());
   part->begin = begin;
   part->end = end;
   part->window = pose_window(lidar_->column_time(sweep_start_, begin),
                              lidar_->column_time(sweep_start_, end - 1));
   casting_->parts.push_back(part);
-  worker_->post([this, part, seed = casting_->seed, start = sweep_start_] {
-    part->cast(*lidar_, seed, start);
-  });
+  worker_->post([this, part] { part->cast(*lidar_); });
 }
 
 void SensorRig::end_sweep() {
@@ -567,8 +570,6 @@ void SensorRig::end_sweep() {
   // the last part, then the sweep: cast on the worker unless the loop collects it first
   post_part(columns_posted_, columns);
   pending_parts_ = casting_->parts;
-  pending_seed_ = casting_->seed;
-  pending_start_ = start;
   // the last part, then the cone detector, with the motion the autonomy estimates now
   const slam::frontend::LidarConeDetector* detector =
       perception_ ? perception_->lidar_detector() : nullptr;
@@ -633,7 +634,7 @@ void SensorRig::SweepResult::detect_with(const slam::frontend::LidarConeDetector
 
 void SensorRig::collect_sweep() {
   // the parts the worker has not come to are cast here (the loop would wait for them anyway)
-  for (const auto& part : pending_parts_) part->cast(*lidar_, pending_seed_, pending_start_);
+  for (const auto& part : pending_parts_) part->cast(*lidar_);
   pending_parts_.clear();
   const bool detect_here = pending_detect_claim_ && !pending_detect_claim_->exchange(true);
   pending_detect_claim_.reset();

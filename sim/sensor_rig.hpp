@@ -239,11 +239,8 @@ class SensorRig {
   std::future<SweepResult> pending_scan_;
   // set by the thread that runs the pending sweep's cone detector (end_sweep())
   std::shared_ptr<std::atomic<bool>> pending_detect_claim_;
-  // its parts (the loop casts those the worker has not come to when it collects the sweep),
-  // its noise's seed and its start
+  // its parts (the loop casts those the worker has not come to when it collects the sweep)
   std::vector<std::shared_ptr<SweepPart>> pending_parts_;
-  uint64_t pending_seed_ = 0;
-  core::TimeUs pending_start_ = 0;
   // when the sweep in flight reaches SLAM (its end plus the perception latency)
   core::TimeUs pending_delivery_us_ = 0;
   core::TimeUs lidar_latency_us_ = 0;
