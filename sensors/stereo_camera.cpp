@@ -1,6 +1,7 @@
 #include "sensors/stereo_camera.hpp"
 
 #include "core/rng.hpp"
+#include "sensors/sun_shadow.hpp"
 #include "vehicle_models/mjcf_builder.hpp"
 
 #define GL_GLEXT_PROTOTYPES
@@ -270,11 +271,7 @@ StereoCamera::StereoCamera(const StereoCameraConfig& config, const mjModel* mode
   cones_ = std::make_unique<ConeSceneWriter>(model, track.cones, ground);
   mjv_defaultScene(&scene_);
   mjv_makeScene(model, &scene_,
-                model->ngeom + kSpareGeoms + cones_->geom_count() + scenery_geom_count(scenery) +
-                    // the shadows: one per solid, two per cone
-                    (config.sun_diffuse > 0.0
-                         ? model->ngeom + 2 * cones_->geom_count() + scenery_geom_count(scenery)
-                         : 0));
+                model->ngeom + kSpareGeoms + cones_->geom_count() + scenery_geom_count(scenery));
   scene_.flags[mjRND_SHADOW] = 0;
   scene_.flags[mjRND_REFLECTION] = 0;
   // the sky is painted after reading back (llvmpipe's cube-mapped skybox costs 3 ms a frame)
@@ -388,7 +385,6 @@ void StereoCamera::render(const mjData* data, const core::Pose3& vehicle_in_trac
   dropped_geoms_ += cones_->append(&scene_, is_knocked, rig_view(labels.left_in_track));
   dropped_geoms_ += append_scenery(&scene_, scenery_, rig_view(labels.left_in_track), ground_);
   simplify_ground(0.5 * (labels.left_in_track.position + labels.right_in_track.position));
-  shadow_first_ = scene_.ngeom;
   add_sun(labels.left_in_track);
 
   // the car's motion now, for the blur: both eyes move as the chassis does midway between them
@@ -437,9 +433,6 @@ void StereoCamera::render_segmentation(SegmentationImage& out) {
   // what each scene geom shows, and its segmentation id: MuJoCo paints a geom in the colour
   // segid + 1 (red the low byte) with lighting, textures and blending off
   const int ground_geom = mj_name2id(model_, mjOBJ_GEOM, "ground");
-  // (the shadows are no objects)
-  const int with_shadows = scene_.ngeom;
-  scene_.ngeom = shadow_first_;
   std::vector<int32_t> shows(static_cast<size_t>(scene_.ngeom));
   std::vector<int> saved_segid(static_cast<size_t>(scene_.ngeom));
   for (int i = 0; i < scene_.ngeom; ++i) {
@@ -468,7 +461,6 @@ void StereoCamera::render_segmentation(SegmentationImage& out) {
   scene_.flags[mjRND_IDCOLOR] = saved_idcolor;
   for (int i = 0; i < scene_.ngeom; ++i)
     scene_.geoms[i].segid = saved_segid[static_cast<size_t>(i)];
-  scene_.ngeom = with_shadows;
 
   // decode, flipping rows to top to bottom; colour 0 (the cleared background) is the sky
   auto decode = [&](int r, int c) {
@@ -542,6 +534,7 @@ void StereoCamera::simplify_ground(const Eigen::Vector3d& centre) {
 }
 
 void StereoCamera::add_sun(const core::Pose3& eye_in_track) {
+  shadow_triangles_.clear();
   const double strength = config_.sun_diffuse;
   if (!(strength > 0.0) || scene_.nlight >= mjMAXLIGHT) return;
   // the direction the sunlight travels
@@ -561,83 +554,123 @@ void StereoCamera::add_sun(const core::Pose3& eye_in_track) {
   sun.directional = 1;
   if (!(config_.shadow_strength > 0.0)) return;
 
-  // the shadows: every solid the scene holds (cones, scenery, the car), flattened along the light
-  // onto the ground under it, a millimetre or two above it, drawn over the ground in black with
-  // the share of the light the sun gives there as its opacity. A shadow falls on the ground only
-  // (not on other objects); the sunlit and shaded sides of the solids themselves come from the
-  // light. Faces towards the sun come out facing up, so face culling draws each shadow once.
+  // the shadows: every solid the scene holds (cones, scenery, the car) casts its outline along
+  // the light onto the ground under it (the plane touching the ground there), a couple of
+  // millimetres above it; render_eye() draws them over the ground in black with the share of the
+  // light the sun gives there as their opacity. A shadow falls on the ground only (not on other
+  // objects); the sunlit and shaded sides of the solids themselves come from the light.
   const Eigen::Vector3d forward = eye_in_track.orientation * Eigen::Vector3d::UnitZ();
   const ViewVolume view = rig_view(eye_in_track);
-  // a shadow reaches at most this far per metre of its caster's size
-  const double reach = 1.0 + 1.0 / std::tan(elevation);
-  const int solids = scene_.ngeom;
-  // each solid, a cone as the boxes that stand in for it (a few faces instead of its mesh's)
-  std::vector<mjvGeom> casters;
-  for (int i = 0; i < solids; ++i) {
-    const mjvGeom& g = scene_.geoms[i];
-    if (g.type == mjGEOM_PLANE || g.type == mjGEOM_HFIELD || g.rgba[3] < 0.995f) continue;
-    const std::vector<ConeSceneWriter::Box> boxes = cones_->shadow_boxes(g);
-    if (boxes.empty()) {
-      casters.push_back(g);
-      continue;
-    }
-    for (const ConeSceneWriter::Box& box : boxes) {
-      mjvGeom& c = casters.emplace_back(g);
-      c.type = mjGEOM_BOX;
-      c.dataid = -1;
-      for (int r = 0; r < 3; ++r) {
-        c.pos[r] = static_cast<float>(box.centre[r]);
-        c.size[r] = static_cast<float>(box.half[r]);
-        for (int k = 0; k < 3; ++k) c.mat[3 * r + k] = r == k ? 1.f : 0.f;
-      }
-    }
-  }
-  for (const mjvGeom& g : casters) {
-    if (scene_.ngeom >= scene_.maxgeom) {
-      ++dropped_geoms_;
-      continue;
-    }
-    const Eigen::Vector3d pos(g.pos[0], g.pos[1], g.pos[2]);
-    const Eigen::Vector3d q(pos.x(), pos.y(), ground_.height(pos.x(), pos.y()));
-    const Eigen::Vector3d n = ground_.normal(pos.x(), pos.y());
-    const double dn = d.dot(n);
-    if (!(dn < -0.05)) continue;
-    // p -> p - ((p - q).n / d.n) d, keeping a thousandth of the height above the ground
-    constexpr double kThickness = 1e-3, kLift = 2e-3;
-    const Eigen::Matrix3d a =
-        Eigen::Matrix3d::Identity() - d * n.transpose() / dn + kThickness * n * n.transpose();
-    const Eigen::Vector3d b = (q.dot(n) / dn) * d - kThickness * q.dot(n) * n + kLift * n;
-    Eigen::Matrix3d m;
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) m(r, c) = g.mat[3 * r + c];
-    const Eigen::Matrix3d am = a * m;
-    const Eigen::Vector3d ap = a * pos + b;
-    // (one out of view is not drawn: the caster's size from its frame's scale and its size,
-    // a mesh's (the cones) from its unit scale)
-    const double size =
-        g.type == mjGEOM_MESH
-            ? 1.0
-            : std::sqrt(g.size[0] * g.size[0] + g.size[1] * g.size[1] + g.size[2] * g.size[2]);
-    if (!view.may_see(ap, reach * size)) continue;
-    const double lit_sun = strength * -dn;
+  constexpr double kLift = 2e-3;
+  std::vector<Eigen::Vector3d> points;
+  const auto cast = [&](const Eigen::Vector3d& at) {
+    const Eigen::Vector3d q(at.x(), at.y(), ground_.height(at.x(), at.y()));
+    const Eigen::Vector3d n = ground_.normal(at.x(), at.y());
+    const std::vector<Eigen::Vector3d> outline = cast_shadow(points, d, q, n);
+    points.clear();
+    if (outline.empty()) return;
+    // (one out of view is not drawn)
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector3d& p : outline) centre += p;
+    centre /= static_cast<double>(outline.size());
+    double radius = 0.0;
+    for (const Eigen::Vector3d& p : outline) radius = std::max(radius, (p - centre).norm());
+    if (!view.may_see(centre, radius)) return;
+    const double lit_sun = strength * -d.dot(n);
     const double lit =
         config_.light_ambient + headlight_diffuse() * std::max(0.0, -forward.dot(n)) + lit_sun;
-    mjvGeom& shadow = scene_.geoms[scene_.ngeom++];
-    shadow = g;
-    for (int r = 0; r < 3; ++r) {
-      shadow.pos[r] = static_cast<float>(ap[r]);
-      for (int c = 0; c < 3; ++c) shadow.mat[3 * r + c] = static_cast<float>(am(r, c));
+    const auto alpha = static_cast<float>(config_.shadow_strength * lit_sun / lit);
+    const auto vertex = [&](const Eigen::Vector3d& p) {
+      const Eigen::Vector3d lifted = p + kLift * n;
+      shadow_triangles_.push_back({static_cast<float>(lifted.x()), static_cast<float>(lifted.y()),
+                                   static_cast<float>(lifted.z()), alpha});
+    };
+    for (size_t i = 1; i + 1 < outline.size(); ++i) {
+      vertex(outline[0]);
+      vertex(outline[i]);
+      vertex(outline[i + 1]);
     }
-    shadow.rgba[0] = shadow.rgba[1] = shadow.rgba[2] = 0.f;
-    // (MuJoCo blends a transparent geom twice, front to back and back to front: each time by
-    // the square root of the share)
-    shadow.rgba[3] =
-        static_cast<float>(1.0 - std::sqrt(1.0 - config_.shadow_strength * lit_sun / lit));
-    shadow.texid = -1;
-    shadow.texcoord = 0;
-    shadow.emission = shadow.specular = shadow.shininess = shadow.reflectance = 0.f;
-    shadow.label[0] = '\0';
+  };
+  for (int i = 0; i < scene_.ngeom; ++i) {
+    const mjvGeom& g = scene_.geoms[i];
+    if (g.type == mjGEOM_PLANE || g.type == mjGEOM_HFIELD || g.rgba[3] < 0.995f) continue;
+    // a cone as the boxes that stand in for it (a few corners instead of its mesh's vertices)
+    const std::vector<ConeSceneWriter::Box> boxes = cones_->shadow_boxes(g);
+    for (const ConeSceneWriter::Box& box : boxes) {
+      mjvGeom b = g;
+      b.type = mjGEOM_BOX;
+      for (int r = 0; r < 3; ++r) {
+        b.pos[r] = static_cast<float>(box.centre[r]);
+        b.size[r] = static_cast<float>(box.half[r]);
+        for (int c = 0; c < 3; ++c) b.mat[3 * r + c] = r == c ? 1.f : 0.f;
+      }
+      shadow_caster_points(b, model_, d, points);
+      cast(box.centre);
+    }
+    if (!boxes.empty()) continue;
+    shadow_caster_points(g, model_, d, points);
+    cast(Eigen::Vector3d(g.pos[0], g.pos[1], g.pos[2]));
   }
+}
+
+void StereoCamera::draw_shadows(const core::Pose3& eye_in_track) const {
+  if (shadow_triangles_.empty()) return;
+  // the view MuJoCo drew with (a symmetric frustum, the eye looking along its optical z axis
+  // with its -y up)
+  const double half_h = frustum_half_height_;
+  const double half_w = half_h * canvas_.width_px / canvas_.height_px;
+  const Eigen::Matrix3d axes = eye_in_track.orientation.toRotationMatrix();
+  // GL's eye frame: x right, y up, z backwards
+  Eigen::Matrix4d view = Eigen::Matrix4d::Identity();
+  view.row(0).head<3>() = axes.col(0).transpose();
+  view.row(1).head<3>() = -axes.col(1).transpose();
+  view.row(2).head<3>() = -axes.col(2).transpose();
+  view.block<3, 1>(0, 3) = -view.block<3, 3>(0, 0) * eye_in_track.position;
+  const Eigen::Matrix4f view_f = view.cast<float>();  // column-major, as GL takes it
+
+  // (GL's state as MuJoCo left it is restored after: its lighting and materials too, which
+  // glColor would change while GL_COLOR_MATERIAL is on)
+  glPushAttrib(GL_ENABLE_BIT | GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT |
+               GL_POLYGON_BIT | GL_CURRENT_BIT | GL_TRANSFORM_BIT | GL_LIGHTING_BIT);
+  glMatrixMode(GL_PROJECTION);
+  glPushMatrix();
+  glLoadIdentity();
+  glFrustum(-half_w, half_w, -half_h, half_h, config_.near_m, config_.far_m);
+  glMatrixMode(GL_MODELVIEW);
+  glPushMatrix();
+  glLoadMatrixf(view_f.data());
+  glDisable(GL_LIGHTING);
+  glDisable(GL_COLOR_MATERIAL);
+  glDisable(GL_TEXTURE_2D);
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_FOG);
+  // hidden where a solid stands in front; over the ground, which they lie just above
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LEQUAL);
+  glDepthMask(GL_FALSE);
+  glEnable(GL_POLYGON_OFFSET_FILL);
+  glPolygonOffset(-1.f, -1.f);
+  // each pixel darkened once where shadows overlap (the sun is either blocked there or not)
+  glClearStencil(0);
+  glClear(GL_STENCIL_BUFFER_BIT);
+  glEnable(GL_STENCIL_TEST);
+  glStencilFunc(GL_EQUAL, 0, 0xff);
+  glStencilOp(GL_KEEP, GL_KEEP, GL_INCR);
+  glEnable(GL_BLEND);
+  glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+  // (the alpha channel marks what was drawn; the sky is painted where it is 0)
+  glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_FALSE);
+  glBegin(GL_TRIANGLES);
+  for (const ShadowVertex& v : shadow_triangles_) {
+    glColor4f(0.f, 0.f, 0.f, v.alpha);
+    glVertex3f(v.x, v.y, v.z);
+  }
+  glEnd();
+  glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  glPopMatrix();
+  glMatrixMode(GL_PROJECTION);
+  glPopMatrix();
+  glPopAttrib();
 }
 
 double StereoCamera::headlight_diffuse() const {
@@ -767,6 +800,7 @@ void StereoCamera::render_eye(const core::Pose3& eye_in_track, core::RgbImage& o
   // was drawn, since mjr_render clears to transparent black)
   const mjrRect viewport{0, 0, w, h};
   mjr_render(viewport, &scene_, &context_);
+  draw_shadows(eye_in_track);
   glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba_scratch_.data());
 
   // flip to rows top to bottom and paint the sky where nothing was drawn: a gradient from the

@@ -176,9 +176,10 @@ class StereoCamera {
  private:
   // replaces MuJoCo's infinite ground plane by a plain square of asphalt around the rig
   void simplify_ground(const Eigen::Vector3d& centre);
-  // the sun as a directional light, and the shadows it casts on the ground (scene geoms from
-  // shadow_first_ on)
+  // the sun as a directional light, and the shadows it casts on the ground (shadow_triangles_)
   void add_sun(const core::Pose3& eye_in_track);
+  // draws shadow_triangles_ over what mjr_render() drew from an eye
+  void draw_shadows(const core::Pose3& eye_in_track) const;
   // the headlight's diffuse intensity: the config's, less the sun's
   double headlight_diffuse() const;
   // poses both GL cameras (and the headlight) at an eye, with the configured frustum
@@ -235,9 +236,12 @@ class StereoCamera {
   mjvCamera free_camera_;
   mjvPerturb perturb_;
   std::vector<unsigned char> rgba_scratch_;
-  // the model's asphalt texture (when the config asks for one), and the size in metres over
-  // which it repeats
-  int shadow_first_ = 0;
+  // the sun's shadows on the ground for the frame being drawn: triangles in the track frame,
+  // each vertex with its shadow's opacity
+  struct ShadowVertex {
+    float x, y, z, alpha;
+  };
+  std::vector<ShadowVertex> shadow_triangles_;
   // the motion blur: the exposure, the car's body the camera rides on, the eyes' velocity and
   // turn rate in the track frame for the frame being drawn, and buffers
   double exposure_s_ = 0.0;
@@ -248,6 +252,8 @@ class StereoCamera {
   // the car's parts as spheres in the track frame (centre, radius), for the frame being drawn
   std::vector<Eigen::Vector4d> car_spheres_;
   std::vector<uint8_t> blur_scratch_;
+  // the model's asphalt texture (when the config asks for one), and the size in metres over
+  // which it repeats
   int asphalt_texture_ = -1;
   double asphalt_period_m_ = 0.0;
   ImageResponseFilter response_filter_;

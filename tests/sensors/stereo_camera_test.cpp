@@ -665,6 +665,16 @@ TEST(StereoCamera, TheSunCastsAConesShadowOnTheGround) {
   EXPECT_NEAR(beside, away, 0.03 * away);
   EXPECT_NEAR(in_shadow / away, 1.0 - sun / lit, 0.05) << in_shadow << " " << away;
 
+  // a second cone 0.5 m to the sun's side: its shadow covers the first one's half way out, and
+  // the ground there is no darker for lying in two shadows (the sun is blocked or it is not)
+  const Vector3d both(8.0, -0.3, 0.0);
+  const double in_one = grey(frame.left, both);
+  track.cones.push_back({2, ConeClass::kOrangeBig, {8.0, 0.5}, std::nullopt});
+  StereoCamera pair(config, car.model(), track);
+  pair.render(car.data(), car.vehicle_pose3(), 0, {}, false, frame, labels);
+  EXPECT_NEAR(in_one / away, 1.0 - sun / lit, 0.05) << in_one << " " << away;
+  EXPECT_NEAR(grey(frame.left, both), in_one, 2.0);
+
   // no sun: no shadow
   config.sun_diffuse = 0.0;
   StereoCamera unlit(config, car.model(), track);
