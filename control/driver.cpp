@@ -101,6 +101,9 @@ constexpr double kEndOfPathDecelShare = 0.5;
 constexpr double kMinLapDistanceM = 50.0;
 // a steering command this share of full lock or more slows the car to the tight-turn speed
 constexpr double kSteerSaturationShare = 0.9;
+// the racing line keeps under this share of full lock's curvature where its corridor leaves
+// room, below the share from which the car slows to the tight-turn speed (speed_profile.cpp)
+constexpr double kLineCurvatureShare = 0.7;
 // a path that asks for this share of the steering's curvature within the distance ahead, or
 // steering this share of full lock now, hands the steering to the manoeuvre search
 constexpr double kManoeuvreCurvatureShare = 0.75;
@@ -717,7 +720,8 @@ struct Driver::Impl {
     std::vector<MapCone> cones = with_sides_kept(centre, map, planner);
     b = with_gaps_filled(b, cones);
     const RacingLine line =
-        plan_racing_line(centre.points, true, b.left, b.right, cones, footprint);
+        plan_racing_line(centre.points, true, b.left, b.right, cones, footprint, 3, 1.0,
+                         kLineCurvatureShare / full_lock_radius_m(vehicle));
     if (line.path.points.size() < 20) return centre;
     *sides = b;
     return Path{resample(line.path.points, 1.0, true), true};

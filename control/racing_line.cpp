@@ -36,6 +36,18 @@ bool held_start(const Corridor& c, size_t i) {
 constexpr int kMaxActiveSetRounds = 60;
 // the footprint check narrows the corridor and plans again at most this many times
 constexpr int kMaxFootprintRounds = 10;
+// with a curvature target: the line is planned again at most this many times with its
+// curvature weighed more where it was tighter than the target, each time by the squared ratio
+// over the target times this gain
+constexpr int kMaxReweighRounds = 8;
+constexpr double kReweighGain = 2.0;
+constexpr double kMaxWeight = 16.0;
+// a turn whose peak stays above the target by more than this factor after the rounds goes back
+// to its least-curvature shape
+constexpr double kTargetSlack = 1.05;
+// a turn where the corridor narrowed to less room than this for the line (beside the car and its
+// margins) somewhere is not reweighed, metres
+constexpr double kMinRoomM = 0.3;
 // a narrowing is spread over this many points either side of where the footprint came too
 // close, and is this much more than the shortfall, metres
 constexpr int kNarrowHalfWindow = 6;
@@ -72,10 +84,12 @@ size_t neighbour(size_t i, int k, size_t n, bool closed) {
   return static_cast<size_t>(std::clamp(j, 0L, static_cast<long>(n) - 1));
 }
 
-// the offsets of least squared second difference within [lo, hi] (active-set solve of the
-// box-constrained least squares problem; pinned offsets are held by a stiff penalty)
+// the offsets of least squared second difference within [lo, hi], each point's squared second
+// difference times its weight (active-set solve of the box-constrained least squares problem;
+// pinned offsets are held by a stiff penalty)
 std::vector<double> least_curvature_offsets(const Corridor& c, const std::vector<double>& lo,
-                                            const std::vector<double>& hi) {
+                                            const std::vector<double>& hi,
+                                            const std::vector<double>& weight) {
   const size_t n = c.centre.size();
   // the second differences as A alpha + b: two rows (x, y) per interior point
   std::vector<Eigen::Triplet<double>> triplets;
@@ -85,11 +99,12 @@ std::vector<double> least_curvature_offsets(const Corridor& c, const std::vector
   for (size_t i = first; i < last; ++i) {
     const size_t im = neighbour(i, -1, n, c.closed), ip = neighbour(i, 1, n, c.closed);
     const Vec2 d0 = c.centre[im] - 2.0 * c.centre[i] + c.centre[ip];
+    const double w = std::sqrt(weight[i]);
     for (int axis = 0; axis < 2; ++axis) {
-      triplets.emplace_back(row, im, c.normal[im][axis]);
-      triplets.emplace_back(row, i, -2.0 * c.normal[i][axis]);
-      triplets.emplace_back(row, ip, c.normal[ip][axis]);
-      b.push_back(d0[axis]);
+      triplets.emplace_back(row, im, w * c.normal[im][axis]);
+      triplets.emplace_back(row, i, -2.0 * w * c.normal[i][axis]);
+      triplets.emplace_back(row, ip, w * c.normal[ip][axis]);
+      b.push_back(w * d0[axis]);
       ++row;
     }
   }
@@ -156,6 +171,28 @@ std::vector<double> least_curvature_offsets(const Corridor& c, const std::vector
   return offsets;
 }
 
+// the runs of set entries of a mask as (first index, length); on a closed line a run may go
+// round the end (then it starts after the last unset entry)
+std::vector<std::pair<size_t, size_t>> runs_of(const std::vector<char>& mask, bool closed) {
+  const size_t n = mask.size();
+  size_t start = 0;
+  if (closed)
+    while (start < n && mask[start]) ++start;
+  if (start == n) start = 0;
+  std::vector<std::pair<size_t, size_t>> runs;
+  for (size_t m = 0; m < n;) {
+    if (!mask[(start + m) % n]) {
+      ++m;
+      continue;
+    }
+    size_t length = 0;
+    while (m + length < n && mask[(start + m + length) % n]) ++length;
+    runs.emplace_back((start + m) % n, length);
+    m += length;
+  }
+  return runs;
+}
+
 // heading of the path at point i (chord through the neighbours)
 double heading_at(const std::vector<Vec2>& pts, size_t i, bool closed) {
   const size_t n = pts.size();
@@ -203,7 +240,7 @@ double footprint_clearance(const core::Pose2& pose, const std::vector<MapCone>& 
 }
 
 RacingLine plan_racing_line(const Corridor& c, const std::vector<MapCone>& cones,
-                            const Footprint& f) {
+                            const Footprint& f, double curvature_target) {
   RacingLine line;
   const size_t n = c.centre.size();
   if (n < 3) return line;
@@ -245,35 +282,111 @@ RacingLine plan_racing_line(const Corridor& c, const std::vector<MapCone>& cones
   // plan, check the footprint along the line, narrow the corridor where it comes too close
   std::vector<Vec2> pts(n);
   std::vector<double> offsets;
-  for (int round = 0; round < kMaxFootprintRounds; ++round) {
-    offsets = least_curvature_offsets(c, lo, hi);
-    for (size_t i = 0; i < n; ++i) pts[i] = c.centre[i] + offsets[i] * c.normal[i];
-    bool narrowed = false;
-    line.min_clearance_m = std::numeric_limits<double>::infinity();
-    for (size_t i = 0; i < n; ++i) {
-      const core::Pose2 pose{pts[i].x(), pts[i].y(), heading_at(pts, i, c.closed)};
-      Vec2 at = Vec2::Zero();
-      const double clearance = footprint_clearance(pose, cones, f, &at);
-      if (clearance < line.min_clearance_m) {
-        line.min_clearance_m = clearance;
-        line.min_clearance_at = at;
+  std::vector<double> weight(n, 1.0);
+  const auto plan = [&] {
+    for (int round = 0; round < kMaxFootprintRounds; ++round) {
+      offsets = least_curvature_offsets(c, lo, hi, weight);
+      for (size_t i = 0; i < n; ++i) pts[i] = c.centre[i] + offsets[i] * c.normal[i];
+      bool narrowed = false;
+      line.min_clearance_m = std::numeric_limits<double>::infinity();
+      for (size_t i = 0; i < n; ++i) {
+        const core::Pose2 pose{pts[i].x(), pts[i].y(), heading_at(pts, i, c.closed)};
+        Vec2 at = Vec2::Zero();
+        const double clearance = footprint_clearance(pose, cones, f, &at);
+        if (clearance < line.min_clearance_m) {
+          line.min_clearance_m = clearance;
+          line.min_clearance_at = at;
+        }
+        if (clearance >= f.margin_m) continue;
+        // the cone's side of the reference line loses room near this point
+        const bool cone_left = c.normal[i].dot(at - c.centre[i]) > 0.0;
+        const double cut = f.margin_m - clearance + kNarrowExtraM;
+        // tapered either side, so that the line bends smoothly round the cone rather than
+        // following a step of the bound
+        for (int k = -kNarrowHalfWindow; k <= kNarrowHalfWindow; ++k) {
+          const size_t j = neighbour(i, k, n, c.closed);
+          if (held_start(c, j)) continue;
+          if (lo[j] >= hi[j]) continue;  // no room left to give
+          const double share = 1.0 - static_cast<double>(std::abs(k)) / (kNarrowHalfWindow + 1);
+          (cone_left ? hi[j] : lo[j]) += (cone_left ? -cut : cut) * share;
+          narrowed = true;
+        }
       }
-      if (clearance >= f.margin_m) continue;
-      // the cone's side of the reference line loses room near this point
-      const bool cone_left = c.normal[i].dot(at - c.centre[i]) > 0.0;
-      const double cut = f.margin_m - clearance + kNarrowExtraM;
-      // tapered either side, so that the line bends smoothly round the cone rather than
-      // following a step of the bound
-      for (int k = -kNarrowHalfWindow; k <= kNarrowHalfWindow; ++k) {
-        const size_t j = neighbour(i, k, n, c.closed);
-        if (held_start(c, j)) continue;
-        if (lo[j] >= hi[j]) continue;  // no room left to give
-        const double share = 1.0 - static_cast<double>(std::abs(k)) / (kNarrowHalfWindow + 1);
-        (cone_left ? hi[j] : lo[j]) += (cone_left ? -cut : cut) * share;
-        narrowed = true;
+      if (!narrowed) break;
+    }
+  };
+  const std::vector<double> lo_start = lo, hi_start = hi;
+  plan();
+
+  // with a curvature target: the turns tighter than it (and a few points either side) weigh
+  // their curvature more, round after round, while the line is still tighter there
+  if (curvature_target > 0.0) {
+    const std::vector<double> k0 = curvatures(pts, c.closed);
+    std::vector<char> tight(n, 0);
+    for (size_t i = 0; i < n; ++i)
+      if (std::abs(k0[i]) > curvature_target)
+        for (int k = -kNarrowHalfWindow; k <= kNarrowHalfWindow; ++k)
+          tight[neighbour(i, k, n, c.closed)] = 1;
+    // (a turn where the corridor leaves the line little room is left as it is: weighed, the
+    // line there pulls away from the middle it is drawn to where there is no room)
+    std::vector<std::pair<size_t, size_t>> runs = runs_of(tight, c.closed);
+    std::erase_if(runs, [&](const std::pair<size_t, size_t>& run) {
+      for (size_t q = 0; q < run.second; ++q) {
+        const size_t j = (run.first + q) % n;
+        if (hi[j] - lo[j] < kMinRoomM) {
+          for (size_t r = 0; r < run.second; ++r) tight[(run.first + r) % n] = 0;
+          return true;
+        }
+      }
+      return false;
+    });
+    const std::vector<Vec2> first_pts = pts;
+    const std::vector<double> first_offsets = offsets;
+    const double first_clearance = line.min_clearance_m;
+    const Vec2 first_at = line.min_clearance_at;
+    bool reweighed = false;
+    for (int round = 0; round < kMaxReweighRounds && !runs.empty(); ++round) {
+      const std::vector<double> k = curvatures(pts, c.closed);
+      bool over = false;
+      for (size_t i = 0; i < n; ++i) {
+        const double excess = std::abs(k[i]) / curvature_target;
+        if (!tight[i] || excess <= 1.0) continue;
+        weight[i] = std::min(kMaxWeight, weight[i] * excess * excess * kReweighGain);
+        over = true;
+      }
+      if (!over) break;
+      plan();
+      reweighed = true;
+    }
+    // a turn the weights could not bring under the target (a minimum hairpin, which needs
+    // full lock whatever the line) keeps its least-curvature shape: spreading its curvature
+    // gains nothing where the car turns at the tight-turn speed anyway
+    if (reweighed) {
+      const std::vector<double> k = curvatures(pts, c.closed);
+      bool kept_any = false;
+      for (const auto& [first, length] : runs) {
+        double peak = 0.0;
+        for (size_t q = 0; q < length; ++q) peak = std::max(peak, std::abs(k[(first + q) % n]));
+        if (peak > kTargetSlack * curvature_target)
+          for (size_t q = 0; q < length; ++q) weight[(first + q) % n] = 1.0;
+        else
+          kept_any = true;
+      }
+      // planned again from the corridor as it was before any narrowing, with the weights of the
+      // turns that came under the target only; none: the first line. A line that brings the
+      // footprint closer to a cone than the first did is not kept either
+      if (kept_any) {
+        lo = lo_start;
+        hi = hi_start;
+        plan();
+      }
+      if (!kept_any || line.min_clearance_m < std::min(f.margin_m, first_clearance) - 1e-3) {
+        pts = first_pts;
+        offsets = first_offsets;
+        line.min_clearance_m = first_clearance;
+        line.min_clearance_at = first_at;
       }
     }
-    if (!narrowed) break;
   }
 
   // the figures of the result
@@ -297,14 +410,14 @@ RacingLine plan_racing_line(const Corridor& c, const std::vector<MapCone>& cones
 RacingLine plan_racing_line(const std::vector<Vec2>& reference, bool closed,
                             const std::vector<Vec2>& left, const std::vector<Vec2>& right,
                             const std::vector<MapCone>& cones, const Footprint& footprint,
-                            int passes, double spacing_m) {
+                            int passes, double spacing_m, double curvature_target) {
   std::vector<Vec2> ref = resample(reference, spacing_m, closed);
   RacingLine line;
   double min_width = 0.0;
   Vec2 min_width_at = Vec2::Zero();
   for (int pass = 0; pass < passes; ++pass) {
     const Corridor corridor = make_corridor(ref, closed, left, right, closed);
-    line = plan_racing_line(corridor, cones, footprint);
+    line = plan_racing_line(corridor, cones, footprint, curvature_target);
     if (line.path.points.size() < 3) return line;
     if (pass == 0) min_width = line.min_width_m, min_width_at = line.min_width_at;
     ref = resample(line.path.points, spacing_m, closed);

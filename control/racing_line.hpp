@@ -62,8 +62,13 @@ struct RacingLine {
 /// The least-curvature line through the corridor with the footprint kept `footprint.margin_m`
 /// clear of `cones` (their base radius is taken from their class). Where the corridor is
 /// narrower than the car plus margins the line keeps to the middle of it.
+///
+/// With a `curvature_target` (1/m; 0: none) the line is planned again where it is tighter than
+/// that, with its curvature there weighing more: the turn spreads over more of its corner at a
+/// larger radius where the corridor leaves room (least squared curvature alone takes a hairpin
+/// on a short arc tighter than it needs to be).
 RacingLine plan_racing_line(const Corridor& corridor, const std::vector<core::MapCone>& cones,
-                            const Footprint& footprint);
+                            const Footprint& footprint, double curvature_target = 0.0);
 
 /// The least-curvature line between the boundaries, planned `passes` times, each pass on the
 /// corridor along the previous line (resampled every spacing_m): the offsets along fixed
@@ -73,7 +78,7 @@ RacingLine plan_racing_line(const Corridor& corridor, const std::vector<core::Ma
 RacingLine plan_racing_line(const std::vector<Vec2>& reference, bool closed,
                             const std::vector<Vec2>& left, const std::vector<Vec2>& right,
                             const std::vector<core::MapCone>& cones, const Footprint& footprint,
-                            int passes = 3, double spacing_m = 1.0);
+                            int passes = 3, double spacing_m = 1.0, double curvature_target = 0.0);
 
 /// Smallest clearance between the footprint and the cones with the rear axle on `pose`, metres
 /// (negative: a cone inside the footprint); `at` gets the nearest cone's position.

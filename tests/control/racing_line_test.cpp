@@ -6,6 +6,7 @@
 
 #include <numbers>
 #include <random>
+#include <tuple>
 
 #include "test_tracks.hpp"
 
@@ -30,6 +31,18 @@ Layout layout_of(const tracks::Track& t) {
   return l;
 }
 
+// the footprint's smallest clearance along a line, heading along it
+double worst_clearance(const RacingLine& line, const Layout& l, const Footprint& f) {
+  double worst = 1e9;
+  const std::vector<Vec2>& p = line.path.points;
+  for (size_t i = 0; i < p.size(); ++i) {
+    const Vec2 d = p[(i + 1) % p.size()] - p[(i + p.size() - 1) % p.size()];
+    worst = std::min(
+        worst, footprint_clearance({p[i].x(), p[i].y(), std::atan2(d.y(), d.x())}, l.cones, f));
+  }
+  return worst;
+}
+
 TEST(RacingLine, KeepsTheFootprintClearOfEveryConeWithTheMargin) {
   // a slalom of S-bends on a 3.5 m lane and a chicane on 3 m, both closed by wide turns
   CentreLine c;
@@ -42,14 +55,7 @@ TEST(RacingLine, KeepsTheFootprintClearOfEveryConeWithTheMargin) {
     ASSERT_GT(line.path.points.size(), 100u);
     // every pose along the line (heading along it) keeps the margin, less a centimetre for the
     // check's own step
-    double worst = 1e9;
-    const std::vector<Vec2>& p = line.path.points;
-    for (size_t i = 0; i < p.size(); ++i) {
-      const Vec2 d = p[(i + 1) % p.size()] - p[(i + p.size() - 1) % p.size()];
-      worst = std::min(
-          worst, footprint_clearance({p[i].x(), p[i].y(), std::atan2(d.y(), d.x())}, l.cones, f));
-    }
-    EXPECT_GT(worst, f.margin_m - 0.01) << "width " << width;
+    EXPECT_GT(worst_clearance(line, l, f), f.margin_m - 0.01) << "width " << width;
   }
 }
 
@@ -136,6 +142,35 @@ TEST(RacingLine, KeepsABlueConeOnItsLeftWhereTheLaneZigZags) {
       EXPECT_LT(p.y(), jut_at.y() - f.half_width_m) << p.transpose();
     }
   }
+}
+
+// With a curvature target the line spreads a hairpin that has room over more of the turn: least
+// squared curvature alone takes its apex tighter than the target, the line with the target stays
+// under it with the footprint as clear; a minimum hairpin (9 m outside diameter), which needs
+// nearly full lock whatever the line, keeps its least-curvature line exactly.
+TEST(RacingLine, ACurvatureTargetSpreadsAHairpinThatHasRoom) {
+  const Footprint f;
+  const double target = 0.24;  // 0.7 of the curvature of a 2.9 m full-lock radius
+  // a stadium with hairpins of `radius` at the centre line on a lane of `width`: the line without
+  // and with the target
+  const auto lines = [&](double radius, double width) {
+    CentreLine c;
+    c.straight(40).arc(radius, kPi).straight(40).arc(radius, kPi);
+    const Layout l = layout_of(circuit_from_centre(c.points(), width, 2.0));
+    return std::tuple{
+        l, plan_racing_line(l.centre, true, l.left, l.right, l.cones, f),
+        plan_racing_line(l.centre, true, l.left, l.right, l.cones, f, 3, 1.0, target)};
+  };
+  const auto [roomy, plain, spread] = lines(4.2, 3.6);
+  EXPECT_GT(plain.max_curvature, 1.1 * target);
+  EXPECT_LT(spread.max_curvature, 1.05 * target);
+  EXPECT_GT(worst_clearance(spread, roomy, f), f.margin_m - 0.01);
+
+  const auto [minimum, least, with_target] = lines(3.0, 3.0);
+  EXPECT_GT(least.max_curvature, 1.2 * target);
+  ASSERT_EQ(with_target.path.points.size(), least.path.points.size());
+  for (size_t i = 0; i < least.path.points.size(); ++i)
+    EXPECT_EQ(with_target.path.points[i], least.path.points[i]) << i;
 }
 
 }  // namespace
