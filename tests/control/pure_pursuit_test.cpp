@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 
 #include "test_tracks.hpp"
 #include "vehicle_models/kinematics.hpp"
@@ -77,6 +78,47 @@ TEST(PurePursuit, SteeringIsClampedToTheLimit) {
   const PathProjection here = project_onto(path, Vec2::Zero(), 0, 1);
   const PurePursuitParams params;
   EXPECT_DOUBLE_EQ(pure_pursuit(params, Pose2{}, 3.0, path, here).steer_rad, params.max_steer_rad);
+}
+
+TEST(TrackPath, OnTheArcThroughCoarsePointsSteersSteadily) {
+  // a hairpin's racing line: points 1 m apart on a 4 m circle (0.25 rad between chords). A car
+  // driving the circle exactly, at every place along a few chords, is on the path and heading
+  // along it: the steering is the circle's own, with no saw-tooth as it passes each point
+  // (measured against the chords, the heading error swung by the turn between two points and
+  // the steering by about 0.25 rad)
+  constexpr double kRadiusM = 4.0;
+  const Path path = circle(kRadiusM, 1.0);
+  const TrackerParams params;
+  const double expected = steer_for_curvature(params, 1.0 / kRadiusM);
+  double lowest = 1e9, highest = -1e9;
+  for (int i = 0; i <= 60; ++i) {
+    const double phi = -0.5 * std::numbers::pi + 0.05 * i;  // about 3 chords
+    const Pose2 pose{kRadiusM * std::cos(phi), kRadiusM * std::sin(phi),
+                     phi + 0.5 * std::numbers::pi};
+    const PathProjection here = project_onto(path, pose.position(), 0, path.segment_count());
+    const double steer = track_path(params, pose, 6.6, path, here, 1.0 / kRadiusM);
+    lowest = std::min(lowest, steer);
+    highest = std::max(highest, steer);
+  }
+  EXPECT_NEAR(lowest, expected, 0.01);
+  EXPECT_NEAR(highest, expected, 0.01);
+}
+
+TEST(TrackPath, EndsAndCuspsOfAPathFallBackOnTheChord) {
+  // an open path's last chord and a chord that turns back have no smooth tangent at one end:
+  // the car beside them is steered by the chord, without NaN
+  const Path path{{Vec2(0.0, 0.0), Vec2(5.0, 0.0), Vec2(0.0, 0.1)}, false};
+  for (size_t segment : {0u, 1u}) {
+    const Pose2 pose{segment == 0 ? 2.0 : 3.0, 0.3, segment == 0 ? 0.0 : std::numbers::pi};
+    const PathProjection here = project_onto(path, pose.position(), segment, 1);
+    const double steer = track_path({}, pose, 3.0, path, here, 0.0);
+    EXPECT_TRUE(std::isfinite(steer));
+  }
+  // on a straight path beside it to the left: steer right
+  const Path straight{{Vec2(0.0, 0.0), Vec2(5.0, 0.0), Vec2(10.0, 0.0)}, false};
+  const Pose2 left_of_it{7.0, 0.5, 0.0};
+  const PathProjection on = project_onto(straight, left_of_it.position(), 0, 2);
+  EXPECT_LT(track_path({}, left_of_it, 3.0, straight, on, 0.0), 0.0);
 }
 
 }  // namespace
