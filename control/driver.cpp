@@ -76,11 +76,22 @@ constexpr double kJoinPastM = 2.0;
 constexpr double kReplanMapMoveM = 0.05;
 constexpr double kReplanCheckS = 0.5;
 constexpr double kReplanJoinS = 1.0;
+// ... where the line (over the join and a little behind the car) bends less than this, or after
+// this wait at the latest, 1/m and seconds. The join bends the path where the car may have its
+// grip in use: on fssim FSI with the LiDAR (seed 2) the car joined the line from lap 1 at a
+// hairpin's exit (at 5 m/s, 3 m/s under the line's profile, accelerating at 15 m/s^2), ran 0.3 m
+// off the line and hit a cone; a line planned again joins only where it is as calm
+constexpr double kReplanMaxCurvature = 0.1;
+constexpr double kReplanMaxWaitS = 5.0;
+constexpr double kReplanBehindM = 2.0;
 // the car switches to the racing line where its lap-1 path comes this close to it and this
 // nearly parallel, or after this distance at the latest, metres and radians
 constexpr double kJoinCloseM = 0.2;
 constexpr double kJoinHeadingRad = 0.1;
 constexpr double kJoinWaitM = 50.0;
+// ... but where the line bends less than kReplanMaxCurvature near the car, unless it has waited
+// this far
+constexpr double kJoinMaxWaitM = 150.0;
 // the feed-forward acceleration is the profile's slope over this distance, metres
 constexpr double kFeedForwardSpanM = 1.0;
 // cones within this distance of the car feed the local planner, metres
@@ -508,8 +519,8 @@ struct Driver::Impl {
     return std::clamp(a, -decel_cap(), accel_cap());
   }
 
-  // the speed limits with a cap: the envelope at the grip fraction
-  SpeedLimits limits(double cap) const {
+  // the speed limits with a cap: the envelope at the grip fraction (lap 1's at its own)
+  SpeedLimits limits(double cap, bool exploring = false) const {
     SpeedLimits l;
     l.max_speed_mps = cap;
     l.max_lateral_accel_mps2 =
@@ -518,6 +529,9 @@ struct Driver::Impl {
     l.max_decel_mps2 = decel_cap();
     if (!circuit_event()) return l;  // acceleration and skidpad keep their constant limits
     l.envelope = envelope;
+    // lap 1 turns with less of the grip than the fast laps, and brakes as they do: braking later
+    // into a minimum hairpin's turn-in is what the turn-in cannot afford
+    if (exploring) l.lateral_share = params.explore_grip_fraction / params.grip_fraction;
     l.max_curvature = 1.0 / full_lock_radius_m(vehicle);
     return l;
   }
@@ -674,7 +688,7 @@ struct Driver::Impl {
             path.length() < kCourseEndPathM
                 ? 0.0
                 : std::sqrt(2.0 * kEndOfPathDecelShare * decel_cap() * path.length());
-        profile = plan_speed(path, limits(params.explore_speed_mps), est.speed_mps, end_v);
+        profile = plan_speed(path, limits(params.explore_speed_mps, true), est.speed_mps, end_v);
         lap_m = 0.0;
         track_progress = false;
         status.path = path.points;
@@ -827,6 +841,9 @@ struct Driver::Impl {
   void replan_if_map_moved(const core::Estimate& est) {
     if (line_map.empty() || est.stamp - line_map_checked < core::from_seconds(kReplanCheckS))
       return;
+    if (phase == Phase::kFast && bends_near(path, progress_segment, est.speed_mps) &&
+        est.stamp - line_map_checked < core::from_seconds(kReplanMaxWaitS))
+      return;  // checked again next tick
     line_map_checked = est.stamp;
     if (map_moved_since_line(est.map) < kReplanMapMoveM) return;
     if (!plan_fast_laps(est)) return;
@@ -835,6 +852,25 @@ struct Driver::Impl {
     const PathProjection at =
         project_onto(racing_line, est.pose.position(), 0, racing_line.segment_count());
     join_racing_line(est, at, std::max(kJoinMinM, kReplanJoinS * std::max(0.0, est.speed_mps)));
+  }
+
+  // whether a closed line bends by more than kReplanMaxCurvature from a little behind
+  // `segment` to the end of a join ahead of it at this speed
+  static bool bends_near(const Path& line, size_t segment, double speed_mps) {
+    const size_t n = line.points.size();
+    if (n < 5 || !line.closed) return false;
+    const double reach = std::max(kJoinMinM, kReplanJoinS * std::max(0.0, speed_mps));
+    const size_t behind = static_cast<size_t>(std::ceil(kReplanBehindM)) + 2;
+    std::vector<Vec2> window;
+    double d = 0.0;
+    for (size_t k = 0; k < n && d < reach + kReplanBehindM + 4.0; ++k) {
+      const size_t j = (segment + n - behind + k) % n;
+      if (!window.empty()) d += (line.points[j] - window.back()).norm();
+      window.push_back(line.points[j]);
+    }
+    const std::vector<double> k = curvatures(window, false);
+    return std::any_of(k.begin(), k.end(),
+                       [](double c) { return std::abs(c) > kReplanMaxCurvature; });
   }
 
   // the path onto the racing line from where the car is (projected at `at`) over join_m, and
@@ -852,7 +888,8 @@ struct Driver::Impl {
   }
 
   // after lap 1 the car is on its lap-1 path, off the racing line: it switches to the line where
-  // the two meet (close and nearly parallel), or after kJoinWaitM at the latest, and joins it
+  // the two meet (close and nearly parallel) where the line is calm, or after kJoinWaitM at the
+  // first calm place (kJoinMaxWaitM at the latest), and joins it
   // over a distance rather than steering onto it at once while it speeds up
   void join_line(const core::Estimate& est) {
     const PathProjection at =
@@ -860,8 +897,11 @@ struct Driver::Impl {
     const Vec2 along = racing_line.segment_end(at.segment) - racing_line.points[at.segment];
     const double heading_error =
         std::remainder(est.pose.yaw - std::atan2(along.y(), along.x()), 2.0 * std::numbers::pi);
+    // where the line bends the join waits (it bends the path where the grip is in use)
+    const bool calm = !bends_near(racing_line, at.segment, est.speed_mps);
     const bool meet = at.distance_m <= kJoinCloseM && std::abs(heading_error) <= kJoinHeadingRad;
-    if (!meet && status.odometer_m - *join_pending_since_m < kJoinWaitM) return;
+    const double waited = status.odometer_m - *join_pending_since_m;
+    if (!(calm && (meet || waited >= kJoinWaitM)) && waited < kJoinMaxWaitM) return;
     join_pending_since_m.reset();
     join_racing_line(est, at, std::max(kJoinMinM, kJoinS * std::max(0.0, est.speed_mps)));
     phase = Phase::kFast;

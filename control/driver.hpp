@@ -30,6 +30,15 @@ struct DriverParams {
   /// with 0.8 (it understeers near the limit and its grip saturates abruptly), 0.23 m with 0.7
   /// and 0.17 m with 0.6, for laps of 15.65, 16.38 and 17.33 s.
   double grip_fraction = 0.7;
+  /// The share of the measured grip lap 1 turns with (exploring a trackdrive or an autocross,
+  /// and braking after its finish; its braking and drive stay at grip_fraction): its path is
+  /// laid afresh from the cones in view each tick and moves as more of a bend comes into view,
+  /// so the car needs grip to spare to follow it. Measured on PacSim FSE24 with the LiDAR (seed
+  /// 1): turning with 0.7 the car entered a 4.5 m-radius bend at 6.7 m/s, turned in late and hit
+  /// its outer cone; with 0.55 its footprint kept 0.53 m. Braking at 0.55 as well reached a
+  /// generated minimum hairpin's turn-in 0.5 m later and hit its outer cones (hard trackdrive
+  /// 7125).
+  double explore_grip_fraction = 0.55;
   /// Acceleration and skidpad: the lateral acceleration their speed profile plans for and the
   /// longitudinal limits of their speed profile and command, m/s^2 (the circuits plan from the
   /// envelope).

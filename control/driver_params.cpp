@@ -20,6 +20,7 @@ std::string DriverParams::validate() const {
       {"launch_accel_mps2", launch_accel_mps2},
       {"speed_gain_per_s", speed_gain_per_s},
       {"grip_fraction", grip_fraction},
+      {"explore_grip_fraction", explore_grip_fraction},
   };
   for (const auto& [key, value] : positive) {
     if (!std::isfinite(value) || value <= 0.0 || value > 1000.0) {
@@ -31,6 +32,9 @@ std::string DriverParams::validate() const {
   if (grip_fraction > 1.0)
     return "grip_fraction: expected a share of the measured grip in (0, 1], got " +
            std::to_string(grip_fraction);
+  if (explore_grip_fraction > 1.0)
+    return "explore_grip_fraction: expected a share of the measured grip in (0, 1], got " +
+           std::to_string(explore_grip_fraction);
   if (!std::isfinite(footprint_margin_m) || footprint_margin_m < 0.0 || footprint_margin_m > 2.0)
     return "footprint_margin_m: expected metres from 0 to 2, got " +
            std::to_string(footprint_margin_m);

@@ -38,7 +38,7 @@ double longitudinal_room(double limit, double v, double k, double a_lat_max) {
 
 double SpeedLimits::lateral_mps2(double v) const {
   if (!envelope) return max_lateral_accel_mps2;
-  return std::min(max_lateral_accel_mps2, envelope->lateral_limit_mps2(v));
+  return std::min(max_lateral_accel_mps2, lateral_share * envelope->lateral_limit_mps2(v));
 }
 
 double SpeedLimits::accel_mps2(double v) const {

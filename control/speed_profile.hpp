@@ -23,6 +23,9 @@ struct SpeedLimits {
   /// drive and braking limits at each speed are the envelope's, each capped by the constant
   /// limit above.
   std::optional<vehicle_models::PerformanceEnvelope> envelope;
+  /// Share of the envelope's lateral limit the profile turns with (1: all of it); braking and
+  /// drive keep the envelope's.
+  double lateral_share = 1.0;
   /// Tightest curvature the car's steering gives (full lock, with its yaw loss), 1/m; 0: none.
   /// Near it the car turns at tight_turn_speed_mps at most, where the turn-in into a minimum
   /// hairpin can be timed (measured on 100 generated hard-profile trackdrives: 24 with cones hit

@@ -298,6 +298,7 @@ std::vector<Field> driver_fields(control::DriverParams& p, const Where& w) {
       number("launch_accel_mps2", p.launch_accel_mps2, w),
       number("speed_gain_per_s", p.speed_gain_per_s, w),
       number("grip_fraction", p.grip_fraction, w),
+      number("explore_grip_fraction", p.explore_grip_fraction, w),
       number("footprint_margin_m", p.footprint_margin_m, w),
       {"check_drivable",
        [&p, w](const YAML::Node& n) { p.check_drivable = read_bool(n, w, "check_drivable"); }},

@@ -177,6 +177,17 @@ TEST(SpeedProfile, OpenPathEndsAtTheEndSpeed) {
               std::sqrt(2.0 * limits.max_decel_mps2 * 0.5 * braking_m), 0.05);
 }
 
+// limits that only the car's envelope at `grip_fraction` binds (the constant caps far above it)
+SpeedLimits envelope_only(const vehicle_models::VehicleParams& car, double grip_fraction) {
+  SpeedLimits limits;
+  limits.max_speed_mps = 60.0;
+  limits.max_lateral_accel_mps2 = 100.0;
+  limits.max_accel_mps2 = 100.0;
+  limits.max_decel_mps2 = 100.0;
+  limits.envelope = vehicle_models::PerformanceEnvelope::of(car, grip_fraction);
+  return limits;
+}
+
 TEST(SpeedProfile, RespectsTheEnvelopeAtTheGripFraction) {
   // the car's envelope at 0.8 of its measured grip: on the hairpin the lateral acceleration is
   // the envelope's at that speed, and between points the speed changes within the envelope's
@@ -185,12 +196,7 @@ TEST(SpeedProfile, RespectsTheEnvelopeAtTheGripFraction) {
   constexpr double kHairpinRadiusM = 6.0;
   const Path path = straight_hairpin_straight(120.0, kHairpinRadiusM, 80.0, &hairpin_s);
   vehicle_models::VehicleParams car;
-  SpeedLimits limits;
-  limits.max_speed_mps = 60.0;
-  limits.max_lateral_accel_mps2 = 100.0;
-  limits.max_accel_mps2 = 100.0;
-  limits.max_decel_mps2 = 100.0;
-  limits.envelope = vehicle_models::PerformanceEnvelope::of(car, 0.8);
+  SpeedLimits limits = envelope_only(car, 0.8);
   const SpeedProfile profile = plan_speed(path, limits, 0.0, std::nullopt);
   const std::vector<double>& s = profile.s_m;
   const std::vector<double>& v = profile.speed_mps;
@@ -214,6 +220,38 @@ TEST(SpeedProfile, RespectsTheEnvelopeAtTheGripFraction) {
   SpeedLimits full = limits;
   full.envelope = vehicle_models::PerformanceEnvelope::of(car, 1.0);
   EXPECT_GT(plan_speed(path, full, 0.0, std::nullopt).speed_mps[mid], v_corner * 1.05);
+}
+
+TEST(SpeedProfile, ALateralShareSlowsTheCornerAndKeepsTheBraking) {
+  // lap 1 turns with a share of the grip and brakes with all of it: the hairpin's speed falls
+  // to the share's corner speed, while on the straight before it the car brakes as hard as
+  // without the share
+  double hairpin_s = 0.0;
+  constexpr double kHairpinRadiusM = 6.0;
+  const Path path = straight_hairpin_straight(120.0, kHairpinRadiusM, 80.0, &hairpin_s);
+  const SpeedLimits limits = envelope_only(vehicle_models::VehicleParams{}, 0.7);
+  SpeedLimits shared = limits;
+  shared.lateral_share = 0.55 / 0.7;
+  const SpeedProfile all = plan_speed(path, limits, 0.0, std::nullopt);
+  const SpeedProfile part = plan_speed(path, shared, 0.0, std::nullopt);
+  const std::vector<double>& s = part.s_m;
+  const size_t mid = static_cast<size_t>(
+      std::lower_bound(s.begin(), s.end(), hairpin_s + 0.5 * kPi * kHairpinRadiusM) - s.begin());
+  const double v = part.speed_mps[mid];
+  EXPECT_NEAR(v * v / kHairpinRadiusM,
+              shared.lateral_share * limits.envelope->lateral_limit_mps2(v),
+              0.02 * limits.envelope->lateral_limit_mps2(v));
+  EXPECT_LT(v, all.speed_mps[mid] * 0.95);
+  // the hardest braking on the straight is the envelope's, with or without the share
+  auto hardest = [&](const SpeedProfile& p) {
+    double d = 0.0;
+    for (size_t i = 0; i + 1 < p.s_m.size() && p.s_m[i + 1] < hairpin_s; ++i)
+      d = std::max(d, (p.speed_mps[i] * p.speed_mps[i] - p.speed_mps[i + 1] * p.speed_mps[i + 1]) /
+                          (2.0 * (p.s_m[i + 1] - p.s_m[i])));
+    return d;
+  };
+  EXPECT_NEAR(hardest(part), hardest(all), 0.02 * hardest(all));
+  EXPECT_GT(hardest(part), 0.9 * limits.envelope->decel_limit_mps2(10.0));
 }
 
 }  // namespace

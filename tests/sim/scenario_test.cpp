@@ -421,6 +421,18 @@ TEST_F(ScenarioFile, OverridesApplyBeforeValidation) {
             std::string::npos);
 }
 
+TEST_F(ScenarioFile, LapOneGripIsAShareOfTheMeasuredGrip) {
+  // lap 1's grip share is its own key, read like the fast laps' and held to (0, 1]
+  const Scenario s =
+      load_scenario(write("event: autocross\ndriver: {explore_grip_fraction: 0.5}\n"));
+  EXPECT_DOUBLE_EQ(s.driver.explore_grip_fraction, 0.5);
+  EXPECT_DOUBLE_EQ(load_scenario(write("event: autocross\n")).driver.explore_grip_fraction, 0.55);
+  for (const char* bad : {"driver.explore_grip_fraction=1.2", "driver.explore_grip_fraction=0"}) {
+    const std::string e = error_of("event: trackdrive\n", {bad});
+    EXPECT_NE(e.find("explore_grip_fraction"), std::string::npos) << bad << ": " << e;
+  }
+}
+
 TEST_F(ScenarioFile, GeneratedCircuitTakesAProfile) {
   // the profile by name, the scenario seed when the circuit has none; an unknown name is an
   // error that names the key and the profiles there are
