@@ -151,7 +151,8 @@ void GraphSlam::predict(const OdometryDelta& odometry) {
   const bool standstill = odometry.distance_m < kStandstillSpeedMps * interval_s &&
                           std::abs(odometry.speed_mps) < kStandstillSpeedMps;
   const double dt_s = standstill ? 0.0 : interval_s;
-  core::Pose2 delta = standstill ? core::Pose2{} : odometry.delta;
+  const core::Pose2 measured = standstill ? core::Pose2{} : odometry.delta;
+  core::Pose2 delta = measured;
   delta.yaw -= gyro_bias_rps_[0] * dt_s;
   const core::Pose2 pose = previous_pose.compose(delta);
   PoseNode node;
@@ -159,8 +160,8 @@ void GraphSlam::predict(const OdometryDelta& odometry) {
   node.x = {pose.x, pose.y, pose.yaw};
   travel_m_ += odometry.distance_m;
   node.travel_m = travel_m_;
-  node.odometry.reset(OdometryResidual::Create(standstill ? core::Pose2{} : odometry.delta,
-                                               sqrt_information<3>(odometry.covariance), dt_s));
+  node.odometry.reset(
+      OdometryResidual::Create(measured, sqrt_information<3>(odometry.covariance), dt_s));
   if (config_.icr_sigma_m > 0.0) node.icr.reset(IcrResidual::Create(config_.icr_sigma_m));
   poses_.push_back(std::move(node));
 
