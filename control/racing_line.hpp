@@ -22,6 +22,14 @@ struct Footprint {
   double half_width_m = 0.7;
   /// Clearance planned between the footprint and a cone's base, metres.
   double margin_m = 0.3;
+  /// Where the line turns tighter than `tight_curvature` (1/m; 0: nowhere) the clearance is
+  /// `tight_margin_m` instead (when larger), from `tight_before_m` before such a turn to
+  /// `tight_after_m` past it: the car takes those turns near full lock with no steering left to
+  /// correct, and leaves them off the line, accelerating at the tyres' limit.
+  double tight_margin_m = 0.0;
+  double tight_curvature = 0.0;
+  double tight_before_m = 10.0;
+  double tight_after_m = 25.0;
 };
 
 /// The free space either side of a reference line.
