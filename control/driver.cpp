@@ -107,6 +107,13 @@ constexpr double kMinLocalPathM = 4.0;
 constexpr double kCourseEndPathM = 15.0;
 // share of the braking limit planned for stopping at the end of the known path
 constexpr double kEndOfPathDecelShare = 0.5;
+// after the last lap on the racing line the car stops within this multiple of its straight-line
+// braking distance plus kStopExtraM (room for the bends on the way, where braking shares the
+// grip with turning), metres
+constexpr double kStopRoomShare = 1.5;
+constexpr double kStopExtraM = 10.0;
+// and brakes with at least this share of the planned braking where a bend uses the grip
+constexpr double kMinStopBrakeShare = 0.2;
 // a lap counts only after this distance since the previous one (or the start), metres (the
 // racing line of eufs peanut is under 100 m)
 constexpr double kMinLapDistanceM = 50.0;
@@ -303,6 +310,9 @@ struct Driver::Impl {
     envelope.max_drive_force_n *= p.grip_fraction;
     footprint = {v.rear_axle_to_front_m, v.rear_axle_to_back_m, 0.5 * v.width_m,
                  p.footprint_margin_m};
+    // the racing line keeps the larger margin about the turns the manoeuvre search takes
+    footprint.tight_margin_m = p.tight_turn_margin_m;
+    footprint.tight_curvature = kManoeuvreCurvatureShare / full_lock_radius_m(v);
     manoeuvre.wheelbase_m = v.wheelbase_m;
     manoeuvre.max_steer_rad = v.max_steer_rad;
     manoeuvre.max_steer_rate_rps = v.max_steer_rate_rps;
@@ -493,29 +503,43 @@ struct Driver::Impl {
   // where the speed target is read: a short preview ahead of s, and a longer one where the
   // profile falls there while the track is being explored (and mapped), and on the fast laps
   // where it falls towards a tight turn
-  double speed_preview_at(double v, double s) const {
+  struct SpeedPreview {
+    double s_m = 0.0;
+    bool long_preview = false;
+  };
+  SpeedPreview speed_preview_at(double v, double s) const {
     const double near = s + std::max(0.0, v) * kSpeedPreviewS;
     const double far = s + std::max(0.0, v) * kBrakePreviewS;
     const double far_speed = profile.speed_at(far, lap_m);
-    if (!(far_speed < profile.speed_at(near, lap_m))) return near;
+    if (!(far_speed < profile.speed_at(near, lap_m))) return {near, false};
     if (phase == Phase::kFast &&
         far_speed > kTightEntryShare * SpeedLimits{}.tight_turn_speed_mps)
-      return near;
-    return far;
+      return {near, false};
+    return {far, true};
   }
 
   // the profile speed a short preview ahead of s
   double speed_command_target(double v, double s) const {
-    return profile.speed_at(speed_preview_at(v, s), lap_m);
+    return profile.speed_at(speed_preview_at(v, s).s_m, lap_m);
   }
 
-  // P-control towards the profile speed plus its slope as feed-forward
+  // P-control towards the profile speed plus its slope as feed-forward, read a preview ahead
+  // for the actuators' lag. On the fast laps at the short preview the P-term compares the
+  // car's speed with the profile where the car is: aimed at the profile's speed 0.1 s ahead, it
+  // held the car that much early on every slope of the profile (braking at 9 m/s^2 from 16 m/s
+  // on FSE24, 1 m/s under the profile all the way into the corner; over it accelerating),
+  // 0.3-0.9 % of the PacSim fast laps. The long preview keeps aiming ahead: it is there to brake
+  // early into the tight turns and while lap 1 is mapped.
   double speed_command(double v, double s, double speed_cap) const {
-    const double s0 = speed_preview_at(v, s);
+    const SpeedPreview preview = speed_preview_at(v, s);
+    const double s0 = preview.s_m;
     const double v0 = std::min(speed_cap, profile.speed_at(s0, lap_m));
     const double v1 = std::min(speed_cap, profile.speed_at(s0 + kFeedForwardSpanM, lap_m));
     const double feed_forward = (v1 * v1 - v0 * v0) / (2.0 * kFeedForwardSpanM);
-    const double a = feed_forward + params.speed_gain_per_s * (v0 - v);
+    const double aim = phase == Phase::kFast && !preview.long_preview
+                           ? std::min(speed_cap, profile.speed_at(s, lap_m))
+                           : v0;
+    const double a = feed_forward + params.speed_gain_per_s * (aim - v);
     return std::clamp(a, -decel_cap(), accel_cap());
   }
 
@@ -670,7 +694,10 @@ struct Driver::Impl {
         trace_lap_start = trace.size();  // the start crossing opens the lap-1 trace
       }
     }
-    if (run_out_until_m && status.odometer_m >= *run_out_until_m) phase = Phase::kBraking;
+    if (run_out_until_m && status.odometer_m >= *run_out_until_m && phase != Phase::kBraking) {
+      phase = Phase::kBraking;
+      if (path.closed) plan_stop(est);
+    }
     if (phase == Phase::kExplore &&
         (trace.empty() || (est.pose.position() - trace.back()).norm() >= kTraceStepM))
       trace.push_back(est.pose.position());
@@ -702,13 +729,57 @@ struct Driver::Impl {
       path = racing_line;
       status.path = path.points;
     }
-    const double cap = phase == Phase::kFast ? params.fast_speed_mps : params.explore_speed_mps;
+    const bool on_line = phase == Phase::kFast || (phase == Phase::kBraking && path.closed);
+    const double cap = on_line ? params.fast_speed_mps : params.explore_speed_mps;
     VehicleCommand cmd = follow(est, cap);
-    if (phase == Phase::kBraking) {
+    if (phase == Phase::kBraking && !path.closed) {
       cmd.accel_mps2 = -decel_cap();
       status.target_speed_mps = 0.0;
     }
     return cmd;
+  }
+
+  // after the last lap on the racing line: a profile along it that brakes the car to a stop at
+  // once, as the speed profile plans braking (the envelope at the grip fraction, less what a
+  // bend takes of the grip by the friction ellipse: earlier before a bend). The command's full 15
+  // m/s^2 from 19 m/s in a bend past the finish of EUFS BM_text_bubble brought the car's rear round
+  // and a cone under it.
+  void plan_stop(const core::Estimate& est) {
+    const size_t n = path.points.size();
+    const std::vector<double> s = path.arc_lengths();
+    const PathProjection here = project_onto(path, est.pose.position(), 0, path.segment_count());
+    const double v = std::max(0.0, est.speed_mps);
+    const SpeedLimits l = fast_limits();
+    const double room =
+        kStopRoomShare * v * v / (2.0 * std::max(1.0, l.decel_mps2(v))) + kStopExtraM;
+    // the points from the one after the car to the stop, as an open path
+    std::vector<size_t> index;
+    Path ahead;
+    for (size_t k = 1; k <= n && (ahead.points.empty() || ahead.length() < room); ++k) {
+      index.push_back((here.segment + k) % n);
+      ahead.points.push_back(path.points[index.back()]);
+    }
+    // from the car on: braking at once with what the path's curvature leaves of the grip (the
+    // friction ellipse at the grip fraction, never under a fifth of the braking)
+    const std::vector<double> curv = curvatures(ahead.points, false);
+    std::vector<double> caps(index.size());
+    double speed = v;
+    Vec2 from = est.pose.position();
+    for (size_t k = 0; k < index.size(); ++k) {
+      const double used = std::min(1.0, speed * speed * std::abs(curv[k]) / l.lateral_mps2(speed));
+      const double decel =
+          l.decel_mps2(speed) * std::max(kMinStopBrakeShare, std::sqrt(1.0 - used * used));
+      const double step = (ahead.points[k] - from).norm();
+      speed = std::sqrt(std::max(0.0, speed * speed - 2.0 * decel * step));
+      caps[k] = std::min(profile.speed_at(s[index[k]], lap_m), speed);
+      from = ahead.points[k];
+    }
+    const SpeedProfile stop = plan_speed(ahead, l, v, 0.0, caps);
+    // past the stop, and behind the car, nothing
+    std::vector<double> stop_speed(n, 0.0);
+    for (size_t k = 0; k < index.size() && k < stop.speed_mps.size(); ++k)
+      stop_speed[index[k]] = stop.speed_mps[k];
+    profile.speed_mps = stop_speed;
   }
 
   // the racing line for the fast laps: least curvature with the footprint clear of the cones,
@@ -854,6 +925,32 @@ struct Driver::Impl {
     join_racing_line(est, at, std::max(kJoinMinM, kReplanJoinS * std::max(0.0, est.speed_mps)));
   }
 
+  // the racing line joined from the car's pose (projected onto it at `at`) over join_m: the
+  // joined path leaves the car along its heading. Started along the line's heading instead,
+  // it left the car up to 0.3 rad off its path where lap 1's line and the racing line cross,
+  // and the tracker's turn onto it swung the car 0.7 m either side of the line (EUFS
+  // Jellybean: two cones at the start of lap 3)
+  Path join_path(const core::Estimate& est, const PathProjection& at, double join_m) const {
+    return join_from(racing_line, est.pose.position(), at, join_m, est.pose.yaw);
+  }
+
+  // the smallest clearance of the footprint to the map's cones along a joined path, from the
+  // car to kJoinPastM past the join's end, metres
+  double join_clearance(const Path& joined, const PathProjection& at, double join_m,
+                        const std::vector<MapCone>& map) const {
+    const size_t n = joined.points.size();
+    double clearance = std::numeric_limits<double>::infinity();
+    double d = 0.0;
+    for (size_t k = 0; k + 1 < n && d <= join_m + kJoinPastM; ++k) {
+      const size_t j = (at.segment + k) % n;
+      const Vec2 a = joined.points[j], b = joined.points[(j + 1) % n];
+      const Pose2 pose{a.x(), a.y(), std::atan2(b.y() - a.y(), b.x() - a.x())};
+      clearance = std::min(clearance, footprint_clearance(pose, map, footprint));
+      d += (b - a).norm();
+    }
+    return clearance;
+  }
+
   // whether a closed line bends by more than kReplanMaxCurvature from a little behind
   // `segment` to the end of a join ahead of it at this speed
   static bool bends_near(const Path& line, size_t segment, double speed_mps) {
@@ -877,7 +974,10 @@ struct Driver::Impl {
   // the line's speed profile (the join curves the path by a few thousandths of 1/m ahead of the
   // car, and more behind it, where the car will not be before the join ends)
   void join_racing_line(const core::Estimate& est, const PathProjection& at, double join_m) {
-    path = join_from(racing_line, est.pose.position(), at, join_m);
+    join_racing_line(join_path(est, at, join_m), at, join_m);
+  }
+  void join_racing_line(const Path& joined, const PathProjection& at, double join_m) {
+    path = joined;
     join_until_m = status.odometer_m + join_m + kJoinPastM;
     profile = plan_speed(racing_line, fast_limits(), std::nullopt, std::nullopt,
                          racing_line_caps);
@@ -902,8 +1002,15 @@ struct Driver::Impl {
     const bool meet = at.distance_m <= kJoinCloseM && std::abs(heading_error) <= kJoinHeadingRad;
     const double waited = status.odometer_m - *join_pending_since_m;
     if (!(calm && (meet || waited >= kJoinWaitM)) && waited < kJoinMaxWaitM) return;
+    // nor does it join where the joined path would take the car closer to a cone than the
+    // racing line's margin (it leaves the car along its heading, which may point at the
+    // outside of a bend ahead)
+    const double join_m = std::max(kJoinMinM, kJoinS * std::max(0.0, est.speed_mps));
+    const Path joined = join_path(est, at, join_m);
+    if (waited < kJoinMaxWaitM && join_clearance(joined, at, join_m, est.map) < footprint.margin_m)
+      return;
     join_pending_since_m.reset();
-    join_racing_line(est, at, std::max(kJoinMinM, kJoinS * std::max(0.0, est.speed_mps)));
+    join_racing_line(joined, at, join_m);
     phase = Phase::kFast;
   }
 };

@@ -38,6 +38,9 @@ std::string DriverParams::validate() const {
   if (!std::isfinite(footprint_margin_m) || footprint_margin_m < 0.0 || footprint_margin_m > 2.0)
     return "footprint_margin_m: expected metres from 0 to 2, got " +
            std::to_string(footprint_margin_m);
+  if (!std::isfinite(tight_turn_margin_m) || tight_turn_margin_m < 0.0 || tight_turn_margin_m > 2.0)
+    return "tight_turn_margin_m: expected metres from 0 to 2, got " +
+           std::to_string(tight_turn_margin_m);
   if (trackdrive_laps < 1 || trackdrive_laps > 100)
     return "trackdrive_laps: expected a lap count from 1 to 100, got " +
            std::to_string(trackdrive_laps);

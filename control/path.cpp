@@ -7,6 +7,11 @@
 
 namespace conesim::control {
 
+namespace {
+// the car's heading is taken this far off the path's at most when it joins, radians
+constexpr double kMaxJoinAngleRad = 0.5;
+}  // namespace
+
 size_t Path::segment_count() const {
   if (points.size() < 2) return 0;
   return closed ? points.size() : points.size() - 1;
@@ -61,30 +66,45 @@ PathProjection project_onto(const Path& path, const Vec2& p, size_t first, size_
   return best;
 }
 
-Path join_from(const Path& path, const Vec2& from, const PathProjection& at, double length_m) {
+Path join_from(const Path& path, const Vec2& from, const PathProjection& at, double length_m,
+               std::optional<double> heading) {
   Path joined = path;
   const size_t n = path.points.size();
   if (n < 2 || length_m <= 0.0) return joined;
   const Vec2 offset = from - at.point;
-  // behind the projection the offset fades in over a few metres as well, so that the car is on
-  // the joined path (the segment it is on moves with it) and the path has no step behind it
+  // the car's heading against the path's, as a sideways slope along the path's normal at the
+  // projection (none without a heading or on a degenerate segment)
+  const Vec2 chord = path.segment_end(at.segment) - path.points[at.segment];
+  Vec2 slope = Vec2::Zero();
+  if (heading && chord.norm() > 1e-9) {
+    const Vec2 t = chord.normalized();
+    const double off = std::clamp(core::normalize_angle(*heading - std::atan2(t.y(), t.x())),
+                                  -kMaxJoinAngleRad, kMaxJoinAngleRad);
+    slope = std::tan(off) * Vec2(-t.y(), t.x());
+  }
+  // behind the projection the offset (continued along the car's heading) fades in over a few
+  // metres as well, so that the car is on the joined path (the segment it is on moves with it)
+  // and the path has no step behind it
   constexpr double kBehindM = 8.0;
   double back = (at.point - path.points[at.segment]).norm();
   for (size_t k = 0; k < n && back < kBehindM; ++k) {
     if (!path.closed && k > at.segment) break;
     const size_t j = (at.segment + n - k) % n;
     const double share = 0.5 * (1.0 + std::cos(std::numbers::pi * back / kBehindM));
-    joined.points[j] = path.points[j] + share * offset;
+    joined.points[j] = path.points[j] + share * (offset - back * slope);
     back += (path.points[j] - path.points[(j + n - 1) % n]).norm();
   }
-  // from the projection forwards: distance along the path, and the share of the offset there
+  // from the projection forwards: the offset fades out over length_m along a half cosine, and
+  // the slope along the cubic Hermite basis that starts at the slope and ends flat (the joined
+  // path leaves the car along its heading and meets the path with the path's own heading)
   double d = (path.segment_end(at.segment) - at.point).norm();
   for (size_t k = 1; k < n && d < length_m; ++k) {
     const size_t i = at.segment + k;
     if (!path.closed && i >= n) break;
     const size_t j = i % n;
-    const double share = 0.5 * (1.0 + std::cos(std::numbers::pi * d / length_m));
-    joined.points[j] = path.points[j] + share * offset;
+    const double u = d / length_m;
+    const double share = 0.5 * (1.0 + std::cos(std::numbers::pi * u));
+    joined.points[j] = path.points[j] + share * offset + d * (1.0 - u) * (1.0 - u) * slope;
     d += (path.points[(j + 1) % n] - path.points[j]).norm();
   }
   return joined;

@@ -3,6 +3,7 @@
 // arc length, resampling, smoothing, curvature and projection of the car onto it.
 
 #include <cstddef>
+#include <optional>
 #include <vector>
 
 #include "core/geometry.hpp"
@@ -46,9 +47,14 @@ PathProjection project_onto(const Path& path, const Vec2& p, size_t first, size_
 /// projection and fading to none at length_m along a half cosine (no kink at either end); behind
 /// the projection the offset fades in the same way over 8 m, so that the car is on the joined
 /// path. Its curvature differs from the path's by about offset * (pi / length)^2 / 2.
+/// With the car's `heading` the joined path also leaves the car along it (the heading's angle
+/// to the path, up to 0.5 rad, as a sideways slope that fades out along the cubic Hermite
+/// basis u (1 - u)^2, continued straight behind the car), and meets the path with the path's
+/// own heading at length_m.
 /// The points keep their indices, so that beyond length_m the two paths are the same and a
 /// follower can switch back without a jump.
-Path join_from(const Path& path, const Vec2& from, const PathProjection& at, double length_m);
+Path join_from(const Path& path, const Vec2& from, const PathProjection& at, double length_m,
+               std::optional<double> heading = std::nullopt);
 
 /// The polyline resampled every spacing_m (the last step of an open path may be shorter).
 std::vector<Vec2> resample(const std::vector<Vec2>& points, double spacing_m, bool closed);

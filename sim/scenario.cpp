@@ -300,6 +300,7 @@ std::vector<Field> driver_fields(control::DriverParams& p, const Where& w) {
       number("grip_fraction", p.grip_fraction, w),
       number("explore_grip_fraction", p.explore_grip_fraction, w),
       number("footprint_margin_m", p.footprint_margin_m, w),
+      number("tight_turn_margin_m", p.tight_turn_margin_m, w),
       {"check_drivable",
        [&p, w](const YAML::Node& n) { p.check_drivable = read_bool(n, w, "check_drivable"); }},
   };

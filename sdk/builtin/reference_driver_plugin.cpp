@@ -21,23 +21,13 @@ using namespace conesim;
 using sdk_bridge::from_sdk;
 
 control::DriverParams read_params(const sdk::RunInfo& run, const sdk::Config& config) {
-  static const char* const kKnown[] = {"explore_speed_mps",
-                                       "fast_speed_mps",
-                                       "acceleration_speed_mps",
-                                       "skidpad_speed_mps",
-                                       "grip_fraction",
-                                       "max_lateral_accel_mps2",
-                                       "max_accel_mps2",
-                                       "max_decel_mps2",
-                                       "footprint_margin_m",
-                                       "check_drivable",
-                                       "lookahead_min_m",
-                                       "lookahead_gain_s",
-                                       "trackdrive_laps",
-                                       "assumed_half_width_m",
-                                       "launch_accel_mps2",
-                                       "speed_gain_per_s",
-                                       nullptr};
+  static const char* const kKnown[] = {
+      "explore_speed_mps",   "fast_speed_mps",   "acceleration_speed_mps",
+      "skidpad_speed_mps",   "grip_fraction",    "max_lateral_accel_mps2",
+      "max_accel_mps2",      "max_decel_mps2",   "footprint_margin_m",
+      "tight_turn_margin_m", "check_drivable",   "lookahead_min_m",
+      "lookahead_gain_s",    "trackdrive_laps",  "assumed_half_width_m",
+      "launch_accel_mps2",   "speed_gain_per_s", nullptr};
   config.require_known(kKnown);
   control::DriverParams p;
   p.explore_speed_mps = config.number("explore_speed_mps", p.explore_speed_mps);
@@ -49,6 +39,7 @@ control::DriverParams read_params(const sdk::RunInfo& run, const sdk::Config& co
   p.max_accel_mps2 = config.number("max_accel_mps2", p.max_accel_mps2);
   p.max_decel_mps2 = config.number("max_decel_mps2", p.max_decel_mps2);
   p.footprint_margin_m = config.number("footprint_margin_m", p.footprint_margin_m);
+  p.tight_turn_margin_m = config.number("tight_turn_margin_m", p.tight_turn_margin_m);
   p.check_drivable = config.boolean("check_drivable", p.check_drivable);
   p.lookahead_min_m = config.number("lookahead_min_m", p.lookahead_min_m);
   p.lookahead_gain_s = config.number("lookahead_gain_s", p.lookahead_gain_s);

@@ -83,5 +83,35 @@ TEST(JoinFrom, OnThePathChangesNothing) {
     EXPECT_LT((joined.points[i] - line.points[i]).norm(), 1e-9);
 }
 
+// A car 0.5 m beside a straight path and heading 0.25 rad further away from it: the joined path
+// leaves the car along its heading (it goes on away from the path for a while) and meets the
+// path with the path's heading at the join's end; joined without the heading, the path's
+// direction at the car is the path's own, 0.25 rad off the car's.
+TEST(JoinFrom, LeavesTheCarAlongItsHeading) {
+  Path line;
+  line.closed = true;
+  for (int i = 0; i < 100; ++i) line.points.emplace_back(i, 0.0);
+  for (int i = 99; i >= 0; --i) line.points.emplace_back(i, 30.0);
+  const Vec2 car(10.3, -0.5);
+  const double heading = -0.25;
+  const PathProjection at = project_onto(line, car, 0, line.segment_count());
+  const double join_m = 12.0;
+  const auto direction_at_car = [&](const Path& p) {
+    const PathProjection on = project_onto(p, car, 0, p.segment_count());
+    const Vec2 d = p.segment_end(on.segment) - p.points[on.segment];
+    return std::atan2(d.y(), d.x());
+  };
+  const Path joined = join_from(line, car, at, join_m, heading);
+  EXPECT_LT(project_onto(joined, car, 0, joined.segment_count()).distance_m, 0.05);
+  EXPECT_NEAR(direction_at_car(joined), heading, 0.03);
+  EXPECT_NEAR(direction_at_car(join_from(line, car, at, join_m)), 0.0, 0.02);
+  // away from the path first, back on it (with its heading) at the join's end
+  double furthest = 0.0;
+  for (int x = 11; x <= 22; ++x) furthest = std::min(furthest, joined.points[x].y());
+  EXPECT_LT(furthest, -0.7);
+  for (int x = 23; x < 30; ++x) EXPECT_LT(std::abs(joined.points[x].y()), 1e-9) << x;
+  EXPECT_LT(std::abs(joined.points[22].y()), 0.01);
+}
+
 }  // namespace
 }  // namespace conesim::control

@@ -433,6 +433,21 @@ TEST_F(ScenarioFile, LapOneGripIsAShareOfTheMeasuredGrip) {
   }
 }
 
+TEST_F(ScenarioFile, TheTightTurnMarginIsItsOwnKey) {
+  // the racing line's margin about the turns near full lock, read like the footprint margin
+  // and held to metres from 0 to 2
+  const Scenario s =
+      load_scenario(write("event: trackdrive\ndriver: {tight_turn_margin_m: 0.4}\n"));
+  EXPECT_DOUBLE_EQ(s.driver.tight_turn_margin_m, 0.4);
+  const Scenario d = load_scenario(write("event: trackdrive\n"));
+  EXPECT_DOUBLE_EQ(d.driver.tight_turn_margin_m, 0.3);
+  EXPECT_DOUBLE_EQ(d.driver.footprint_margin_m, 0.3);
+  for (const char* bad : {"driver.tight_turn_margin_m=-0.1", "driver.tight_turn_margin_m=nan"}) {
+    const std::string e = error_of("event: trackdrive\n", {bad});
+    EXPECT_NE(e.find("tight_turn_margin_m"), std::string::npos) << bad << ": " << e;
+  }
+}
+
 TEST_F(ScenarioFile, GeneratedCircuitTakesAProfile) {
   // the profile by name, the scenario seed when the circuit has none; an unknown name is an
   // error that names the key and the profiles there are
