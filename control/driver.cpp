@@ -112,8 +112,6 @@ constexpr double kEndOfPathDecelShare = 0.5;
 // grip with turning), metres
 constexpr double kStopRoomShare = 1.5;
 constexpr double kStopExtraM = 10.0;
-// and brakes with at least this share of the planned braking where a bend uses the grip
-constexpr double kMinStopBrakeShare = 0.2;
 // a lap counts only after this distance since the previous one (or the start), metres (the
 // racing line of eufs peanut is under 100 m)
 constexpr double kMinLapDistanceM = 50.0;
@@ -755,20 +753,19 @@ struct Driver::Impl {
     // the points from the one after the car to the stop, as an open path
     std::vector<size_t> index;
     Path ahead;
-    for (size_t k = 1; k <= n && (ahead.points.empty() || ahead.length() < room); ++k) {
+    double length = 0.0;
+    for (size_t k = 1; k <= n && length < room; ++k) {
       index.push_back((here.segment + k) % n);
+      if (!ahead.points.empty()) length += (path.points[index.back()] - ahead.points.back()).norm();
       ahead.points.push_back(path.points[index.back()]);
     }
-    // from the car on: braking at once with what the path's curvature leaves of the grip (the
-    // friction ellipse at the grip fraction, never under a fifth of the braking)
+    // from the car on: braking at once with what the path's curvature leaves of the grip
     const std::vector<double> curv = curvatures(ahead.points, false);
     std::vector<double> caps(index.size());
     double speed = v;
     Vec2 from = est.pose.position();
     for (size_t k = 0; k < index.size(); ++k) {
-      const double used = std::min(1.0, speed * speed * std::abs(curv[k]) / l.lateral_mps2(speed));
-      const double decel =
-          l.decel_mps2(speed) * std::max(kMinStopBrakeShare, std::sqrt(1.0 - used * used));
+      const double decel = l.braking_mps2(speed, curv[k]);
       const double step = (ahead.points[k] - from).norm();
       speed = std::sqrt(std::max(0.0, speed * speed - 2.0 * decel * step));
       caps[k] = std::min(profile.speed_at(s[index[k]], lap_m), speed);

@@ -51,6 +51,10 @@ double SpeedLimits::decel_mps2(double v) const {
   return std::min(max_decel_mps2, envelope->decel_limit_mps2(v));
 }
 
+double SpeedLimits::braking_mps2(double v, double k) const {
+  return longitudinal_room(decel_mps2(v), v, k, lateral_mps2(v));
+}
+
 double SpeedLimits::corner_speed_mps(double k) const {
   const double curvature = std::max(kMinCurvature, std::abs(k));
   // near full lock: the tight-turn speed
@@ -173,8 +177,7 @@ SpeedProfile plan_speed(const Path& path, const SpeedLimits& limits,
   for (size_t r = 0; r < rounds; ++r) {
     for (size_t m = steps; m-- > 0;) {
       const size_t i = m % n, j = (m + 1) % n;
-      const double a =
-          longitudinal_room(limits.decel_mps2(v[j]), v[j], k[j], limits.lateral_mps2(v[j]));
+      const double a = limits.braking_mps2(v[j], k[j]);
       v[i] = std::min(v[i], std::sqrt(v[j] * v[j] + 2.0 * a * ds(i)));
     }
   }

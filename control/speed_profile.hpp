@@ -43,6 +43,9 @@ struct SpeedLimits {
   double lateral_mps2(double v) const;
   double accel_mps2(double v) const;
   double decel_mps2(double v) const;
+  /// Braking allowed at speed v on a turn of curvature k: decel_mps2 less what the turn takes
+  /// of the grip by the friction ellipse, never under a fifth of it, m/s^2.
+  double braking_mps2(double v, double k) const;
   /// Highest speed on a turn of curvature k (lateral limit, capped by max_speed_mps), m/s.
   double corner_speed_mps(double k) const;
 };

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <initializer_list>
 
 #include "core/error.hpp"
 
@@ -32,6 +33,13 @@ class ScenarioFile : public ::testing::Test {
       return e.what();
     }
     return "";
+  }
+  // each `--set` of `bad` is refused with an error that names `key`
+  void expect_refused(const std::string& key, std::initializer_list<const char*> bad) {
+    for (const char* set : bad) {
+      const std::string e = error_of("event: trackdrive\n", {set});
+      EXPECT_NE(e.find(key), std::string::npos) << set << ": " << e;
+    }
   }
   fs::path dir_;
 };
@@ -427,10 +435,8 @@ TEST_F(ScenarioFile, LapOneGripIsAShareOfTheMeasuredGrip) {
       load_scenario(write("event: autocross\ndriver: {explore_grip_fraction: 0.5}\n"));
   EXPECT_DOUBLE_EQ(s.driver.explore_grip_fraction, 0.5);
   EXPECT_DOUBLE_EQ(load_scenario(write("event: autocross\n")).driver.explore_grip_fraction, 0.55);
-  for (const char* bad : {"driver.explore_grip_fraction=1.2", "driver.explore_grip_fraction=0"}) {
-    const std::string e = error_of("event: trackdrive\n", {bad});
-    EXPECT_NE(e.find("explore_grip_fraction"), std::string::npos) << bad << ": " << e;
-  }
+  expect_refused("explore_grip_fraction",
+                 {"driver.explore_grip_fraction=1.2", "driver.explore_grip_fraction=0"});
 }
 
 TEST_F(ScenarioFile, TheTightTurnMarginIsItsOwnKey) {
@@ -442,10 +448,8 @@ TEST_F(ScenarioFile, TheTightTurnMarginIsItsOwnKey) {
   const Scenario d = load_scenario(write("event: trackdrive\n"));
   EXPECT_DOUBLE_EQ(d.driver.tight_turn_margin_m, 0.3);
   EXPECT_DOUBLE_EQ(d.driver.footprint_margin_m, 0.3);
-  for (const char* bad : {"driver.tight_turn_margin_m=-0.1", "driver.tight_turn_margin_m=nan"}) {
-    const std::string e = error_of("event: trackdrive\n", {bad});
-    EXPECT_NE(e.find("tight_turn_margin_m"), std::string::npos) << bad << ": " << e;
-  }
+  expect_refused("tight_turn_margin_m",
+                 {"driver.tight_turn_margin_m=-0.1", "driver.tight_turn_margin_m=nan"});
 }
 
 TEST_F(ScenarioFile, GeneratedCircuitTakesAProfile) {
