@@ -22,14 +22,17 @@ expect() {  # expect NAME CONDITION_TEXT : the condition (a test expression) hol
 }
 # stop PID SIGNAL [--children]: sends the signal and waits for the process to end; sets got (its
 # exit status) and took: the milliseconds from the signal until it was last seen running, less
-# the longest time it (or, with --children, one of its child processes, each of which it waits
-# for) spent runnable but waiting for a CPU meanwhile (/proc/PID/schedstat). On a busy machine
-# (other builds, the sanitizer build's suite two tests at a time) that wait is the machine's,
-# not the stop's; time spent running or blocked (joining a thread, sleeping, writing) counts in
-# full. It is polled every 20 ms: on a busy machine the poll itself lags, which is why the end
-# is when the process was last seen, not when the poll noticed it gone.
+# the longest time one of its threads (or, with --children, of its child processes' threads,
+# each of which it waits for) spent runnable but waiting for a CPU meanwhile
+# (/proc/PID/task/TID/schedstat). On a busy machine (other builds, the sanitizer build's suite
+# two tests at a time) that wait is the machine's, not the stop's. It is every thread's, not
+# only the main one's: a run's main thread ends by joining its SLAM lanes' threads, and while a
+# lane finishes the update it is in, the main thread is blocked (not waiting for a CPU) and the
+# lane's thread is the one that waits. Time spent running or blocked otherwise (sleeping,
+# writing) counts in full. It is polled every 20 ms: on a busy machine the poll itself lags,
+# which is why the end is when the process was last seen, not when the poll noticed it gone.
 stop() {
-  local pid="$1" signal="$2" children="${3:-}" sent seen stat p run w
+  local pid="$1" signal="$2" children="${3:-}" sent seen stat p task run w
   local -A wait0=() wait1=()
   sent=$((${EPOCHREALTIME/./} / 1000))
   seen=$sent
@@ -37,9 +40,11 @@ stop() {
   while read -r -a stat 2>/dev/null <"/proc/$pid/stat" && [ "${stat[2]}" != Z ]; do
     seen=$((${EPOCHREALTIME/./} / 1000))
     for p in "$pid" $([ -n "$children" ] && pgrep -P "$pid"); do
-      read -r run w _ 2>/dev/null <"/proc/$p/schedstat" || continue
-      [ -n "${wait0[$p]+set}" ] || wait0[$p]=$w
-      wait1[$p]=$w
+      for task in "/proc/$p/task/"*; do
+        read -r run w _ 2>/dev/null <"$task/schedstat" || continue
+        [ -n "${wait0[$task]+set}" ] || wait0[$task]=$w
+        wait1[$task]=$w
+      done
     done
     sleep 0.02
   done
@@ -47,7 +52,7 @@ stop() {
   got=$?
   local waited=0
   for p in "${!wait1[@]}"; do
-    w=$((wait1[$p] - wait0[$p]))
+    w=$((${wait1[$p]} - ${wait0[$p]}))
     [ "$w" -gt "$waited" ] && waited=$w
   done
   took=$((seen - sent - waited / 1000000))
