@@ -94,9 +94,14 @@ size_t neighbour(size_t i, int k, size_t n, bool closed) {
 // the offsets of least squared second difference within [lo, hi], each point's squared second
 // difference times its weight (active-set solve of the box-constrained least squares problem;
 // pinned offsets are held by a stiff penalty)
+//
+// `active` (n entries or empty) starts the active set: the footprint check's rounds and the
+// reweighing change the bounds and weights a little, and the set of the solve before needs a
+// round or two where a cold start takes dozens. It holds the set reached on return.
 std::vector<double> least_curvature_offsets(const Corridor& c, const std::vector<double>& lo,
                                             const std::vector<double>& hi,
-                                            const std::vector<double>& weight) {
+                                            const std::vector<double>& weight,
+                                            std::vector<int>& active) {
   const size_t n = c.centre.size();
   // the second differences as A alpha + b: two rows (x, y) per interior point
   std::vector<Eigen::Triplet<double>> triplets;
@@ -124,10 +129,14 @@ std::vector<double> least_curvature_offsets(const Corridor& c, const std::vector
   const Eigen::VectorXd g = a.transpose() * bv;
 
   // active set: -1 pinned at lo, +1 at hi, 0 free; offsets with no room are drawn mid-way (2)
-  std::vector<int> active(n, 0);
+  active.resize(n, 0);
   std::vector<double> pin(n, 0.0);
-  for (size_t i = 0; i < n; ++i)
-    if (lo[i] >= hi[i]) active[i] = 2, pin[i] = 0.5 * (lo[i] + hi[i]);
+  for (size_t i = 0; i < n; ++i) {
+    if (lo[i] >= hi[i])
+      active[i] = 2, pin[i] = 0.5 * (lo[i] + hi[i]);
+    else if (active[i] == 2)
+      active[i] = 0;
+  }
   Eigen::VectorXd x = Eigen::VectorXd::Zero(static_cast<long>(n));
   // the pins change only the diagonal: one ordering serves every solve
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
@@ -295,9 +304,10 @@ RacingLine plan_with_margins(const Corridor& c, const std::vector<MapCone>& cone
   std::vector<Vec2> pts(n);
   std::vector<double> offsets;
   std::vector<double> weight(n, 1.0);
+  std::vector<int> active;
   const auto plan = [&] {
     for (int round = 0; round < kMaxFootprintRounds; ++round) {
-      offsets = least_curvature_offsets(c, lo, hi, weight);
+      offsets = least_curvature_offsets(c, lo, hi, weight, active);
       for (size_t i = 0; i < n; ++i) pts[i] = c.centre[i] + offsets[i] * c.normal[i];
       bool narrowed = false;
       std::vector<double> cut_left(n, 0.0), cut_right(n, 0.0);
