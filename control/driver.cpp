@@ -386,6 +386,11 @@ struct Driver::Impl {
     }
   }
 
+  // whether the car follows the racing line: the fast laps, and the stop after the last
+  bool on_racing_line() const {
+    return phase == Phase::kFast || (phase == Phase::kBraking && path.closed);
+  }
+
   // steering along the current path, and the speed command towards its profile
   VehicleCommand follow(const core::Estimate& est, double speed_cap) {
     VehicleCommand cmd;
@@ -413,7 +418,11 @@ struct Driver::Impl {
     // steering: the circuits track the path's curvature with feedback on the errors, the
     // other events aim with pure pursuit; then the speed command
     if (event == EventType::kAutocross || event == EventType::kTrackdrive) {
-      const bool fast = phase == Phase::kFast;
+      // the stop after the last lap runs along the racing line at the fast laps' speeds: with
+      // the exploration's slower tracker the car cut 0.15 m inside the first bend past the
+      // finish (the slalom of tests/control at 15 m/s, in the kinematic loop before it had the
+      // steering lag)
+      const bool fast = on_racing_line();
       const double preview_s = fast ? kFastSteerPreviewS : kSteerPreviewS;
       const double ahead = s_here + preview_s * std::max(0.0, est.speed_mps);
       const std::vector<double> k = curvatures(path.points, path.closed);
@@ -727,8 +736,7 @@ struct Driver::Impl {
       path = racing_line;
       status.path = path.points;
     }
-    const bool on_line = phase == Phase::kFast || (phase == Phase::kBraking && path.closed);
-    const double cap = on_line ? params.fast_speed_mps : params.explore_speed_mps;
+    const double cap = on_racing_line() ? params.fast_speed_mps : params.explore_speed_mps;
     VehicleCommand cmd = follow(est, cap);
     if (phase == Phase::kBraking && !path.closed) {
       cmd.accel_mps2 = -decel_cap();
