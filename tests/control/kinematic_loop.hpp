@@ -31,10 +31,11 @@ struct LoopParams {
   /// Steering actuator: rate limit rad/s; acceleration: first-order lag s, and limits m/s^2.
   double steer_rate_rps = 2.5;
   /// The turning follows the steering with this first-order lag, s: the MuJoCo car's tyres
-  /// build their side force after the wheels turn. Fitted to the MuJoCo car's path after a step
-  /// of the steering at 8-20 m/s (0.03 and 0.08 rad): 0.04 s within 0.02 m over 1 s, where no
-  /// lag is 0.04-0.27 m off (at 0.03 rad) and the driver's steering preview, set on the MuJoCo
-  /// car, makes the lagless bicycle cut inside every bend.
+  /// build their side force after the wheels turn. Fitted to the MuJoCo car's path after a
+  /// 0.03 rad step of the steering at 8-20 m/s: with 0.04 s within 0.021 m over 1 s, without a
+  /// lag 0.04-0.26 m off (nearer the grip limit, 0.08 rad at 16 m/s, the best fit is 0.06 s).
+  /// Without it the driver's steering preview, set on the MuJoCo car, made the bicycle cut
+  /// inside every bend.
   double steer_lag_s = 0.04;
   double accel_lag_s = 0.1;
   double max_accel_mps2 = 10.0;
