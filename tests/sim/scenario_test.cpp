@@ -447,7 +447,7 @@ TEST_F(ScenarioFile, TheTightTurnMarginIsItsOwnKey) {
   EXPECT_DOUBLE_EQ(s.driver.tight_turn_margin_m, 0.4);
   const Scenario d = load_scenario(write("event: trackdrive\n"));
   EXPECT_DOUBLE_EQ(d.driver.tight_turn_margin_m, 0.3);
-  EXPECT_DOUBLE_EQ(d.driver.footprint_margin_m, 0.2);
+  EXPECT_DOUBLE_EQ(d.driver.footprint_margin_m, 0.3);
   expect_refused("tight_turn_margin_m",
                  {"driver.tight_turn_margin_m=-0.1", "driver.tight_turn_margin_m=nan"});
 }
