@@ -882,7 +882,9 @@ struct Driver::Impl {
     // the track that pass close) is not the circuit
     if (circuit && !follows_lap(*circuit, lap_trace, kLapOffCircuitM)) circuit.reset();
     if (!circuit && !lap_trace.empty()) {
-      const std::vector<Vec2> lap = smooth(resample(lap_trace, 1.0, true), 3, true);
+      // (a loop that doubled back past the start kinked the racing line there: a 0.4 rad
+      // steering step and a cone at the start of lap 3 of a hard trackdrive with GraphSLAM)
+      const std::vector<Vec2> lap = smooth(resample(closed_lap(lap_trace), 1.0, true), 3, true);
       circuit = Path{resample(lap, 1.0, true), true};
     }
     if (!circuit) return false;

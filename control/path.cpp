@@ -134,6 +134,20 @@ std::vector<Vec2> resample(const std::vector<Vec2>& points, double spacing_m, bo
   return out;
 }
 
+std::vector<Vec2> closed_lap(std::vector<Vec2> trace, double reach_m) {
+  if (trace.size() < 3) return trace;
+  const Vec2 first = trace.front();
+  // the heading over the trace's first metre (its points may be closer than that)
+  Vec2 heading = Vec2::Zero();
+  for (size_t i = 1; i < trace.size() && heading.norm() < 1.0; ++i) heading = trace[i] - first;
+  if (heading.norm() < 1e-9) return trace;
+  heading.normalize();
+  while (trace.size() > 3 && (trace.back() - first).norm() < reach_m &&
+         (trace.back() - first).dot(heading) >= 0.0)
+    trace.pop_back();
+  return trace;
+}
+
 std::vector<Vec2> smooth(const std::vector<Vec2>& points, int half_window, bool closed) {
   const int n = static_cast<int>(points.size());
   if (n < 3 || half_window <= 0) return points;

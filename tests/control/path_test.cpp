@@ -115,3 +115,46 @@ TEST(JoinFrom, LeavesTheCarAlongItsHeading) {
 
 }  // namespace
 }  // namespace conesim::control
+
+namespace conesim::control {
+namespace {
+
+// a lap's trace on a 20 m circle from (0, -20) anticlockwise, every 0.5 m, running `past_m`
+// beyond its start
+std::vector<Vec2> circle_trace(double past_m) {
+  std::vector<Vec2> trace;
+  const double r = 20.0, lap = 2.0 * std::numbers::pi * r;
+  for (double s = 0.0; s <= lap + past_m; s += 0.5)
+    trace.emplace_back(r * std::sin(s / r), -r * std::cos(s / r));
+  return trace;
+}
+
+// the largest turn between consecutive chords of a closed polyline, radians
+double largest_turn(const std::vector<Vec2>& loop) {
+  double worst = 0.0;
+  const size_t n = loop.size();
+  for (size_t i = 0; i < n; ++i) {
+    const Vec2 a = loop[(i + 1) % n] - loop[i], b = loop[(i + 2) % n] - loop[(i + 1) % n];
+    worst = std::max(worst, std::abs(std::atan2(a.x() * b.y() - a.y() * b.x(), a.dot(b))));
+  }
+  return worst;
+}
+
+TEST(ClosedLap, DropsTheTraceRunOnPastTheStart) {
+  // 1.1 m past the start, as a lap counted when the car's front crosses the line: closed as it
+  // is, the loop doubles back (a turn of pi); closed_lap ends it behind the start, and the loop
+  // turns by a chord's 0.05 rad at most (1 m chords on a 20 m radius)
+  const std::vector<Vec2> trace = circle_trace(1.1);
+  EXPECT_GT(largest_turn(resample(trace, 1.0, true)), 3.0);
+  const std::vector<Vec2> lap = closed_lap(trace);
+  EXPECT_LT(lap.size(), trace.size());
+  EXPECT_LT(largest_turn(resample(lap, 1.0, true)), 0.06);
+}
+
+TEST(ClosedLap, KeepsATraceThatEndsBehindItsStart) {
+  const std::vector<Vec2> trace = circle_trace(-0.7);
+  EXPECT_EQ(closed_lap(trace).size(), trace.size());
+}
+
+}  // namespace
+}  // namespace conesim::control
