@@ -132,7 +132,9 @@ inline LoopResult run_loop(const tracks::Track& track, core::EventType event,
   result.gate_crossings.resize(track.timing_gates.size());
   std::vector<bool> seen(track.cones.size(), false), hit(track.cones.size(), false);
   std::vector<core::MapCone> map;
-  double v = 0.0, steer = 0.0, wheels = 0.0, accel = 0.0;
+  // `wheels`: the steering the turning follows (lagged); `turning`: the single-track angle it
+  // turns on (with the yaw-gain loss)
+  double v = 0.0, steer = 0.0, wheels = 0.0, turning = 0.0, accel = 0.0;
   core::VehicleCommand cmd;
   const int steps_per_driver =
       std::max(1, static_cast<int>(std::lround(loop.driver_period_s / loop.dt_s)));
@@ -169,8 +171,7 @@ inline LoopResult run_loop(const tracks::Track& track, core::EventType event,
       in.estimate.stamp = in.observations.stamp;
       in.estimate.pose = map_origin.inverse().compose(pose);
       in.estimate.speed_mps = v;
-      in.estimate.yaw_rate_rps = vehicle_models::bicycle_yaw_rate(
-          v, std::atan(std::tan(wheels) * yaw_gain_at(loop.yaw_gain, wheels)), vehicle.wheelbase_m);
+      in.estimate.yaw_rate_rps = vehicle_models::bicycle_yaw_rate(v, turning, vehicle.wheelbase_m);
       in.estimate.map = map;
       if (loop.map_error)
         for (core::MapCone& c : in.estimate.map) {
@@ -199,8 +200,8 @@ inline LoopResult run_loop(const tracks::Track& track, core::EventType event,
     // motion
     const Vec2 front_before = pose.transform({loop.front_m, 0.0});
     wheels += (steer - wheels) * std::min(1.0, loop.dt_s / std::max(loop.steer_lag_s, 1e-9));
-    const double effective_steer = std::atan(std::tan(wheels) * yaw_gain_at(loop.yaw_gain, wheels));
-    pose = vehicle_models::bicycle_step(pose, v, effective_steer, vehicle.wheelbase_m, loop.dt_s);
+    turning = std::atan(std::tan(wheels) * yaw_gain_at(loop.yaw_gain, wheels));
+    pose = vehicle_models::bicycle_step(pose, v, turning, vehicle.wheelbase_m, loop.dt_s);
     v = std::max(0.0, v + accel * loop.dt_s);
     result.max_speed_mps = std::max(result.max_speed_mps, v);
     const Vec2 front_after = pose.transform({loop.front_m, 0.0});

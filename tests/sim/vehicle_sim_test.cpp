@@ -20,6 +20,21 @@ using vehicle_models::VehicleParams;
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
+// the driver's and the kinematic loop's model of the car, one step of dt: the steering rate-limited
+// towards `target`, the turning lagging it by lag_s, the yaw-gain table, a kinematic bicycle
+struct LaggedBicycle {
+  core::Pose2 pose;
+  double steer = 0.0, wheels = 0.0;
+  void step(double target, double rate_rps, double lag_s,
+            const std::vector<std::pair<double, double>>& gain, double wheelbase_m,
+            double speed_mps, double dt) {
+    steer = std::min(target, steer + rate_rps * dt);
+    wheels += (steer - wheels) * std::min(1.0, dt / std::max(lag_s, 1e-9));
+    const double effective = std::atan(std::tan(wheels) * control::yaw_gain_at(gain, wheels));
+    pose = vehicle_models::bicycle_step(pose, speed_mps, effective, wheelbase_m, dt);
+  }
+};
+
 // holds a speed with a proportional controller and a fixed steering angle
 VehicleCommand cruise(const VehicleTruth& t, double speed_mps, double steer_rad) {
   return {steer_rad, std::clamp(3.0 * (speed_mps - t.vx_mps), -8.0, 8.0), false};
@@ -165,16 +180,15 @@ TEST(VehicleSim, TurnInFollowsTheDriversModelWithItsLag) {
   }
   ASSERT_EQ(mujoco.size(), headings.size());
   auto model_error = [&](double lag_s) {
-    core::Pose2 pose;
-    double steer = 0.0, wheels = 0.0, worst = 0.0;
+    LaggedBicycle model;
+    double worst = 0.0;
     size_t next = 0;
     const double dt = 0.001;
     for (int i = 0; i < 2500 && next < headings.size(); ++i) {
-      steer = std::min(p.max_steer_rad, steer + p.max_steer_rate_rps * dt);
-      wheels += (steer - wheels) * std::min(1.0, dt / std::max(lag_s, 1e-9));
-      const double effective = std::atan(std::tan(wheels) * control::yaw_gain_at(gain, wheels));
-      pose = vehicle_models::bicycle_step(pose, 4.0, effective, p.wheelbase_m, dt);
-      if (pose.yaw >= headings[next]) worst = std::max(worst, (pose.position() - mujoco[next++]).norm());
+      model.step(p.max_steer_rad, p.max_steer_rate_rps, lag_s, gain, p.wheelbase_m, 4.0, dt);
+      const core::Pose2& pose = model.pose;
+      if (pose.yaw >= headings[next])
+        worst = std::max(worst, (pose.position() - mujoco[next++]).norm());
     }
     return worst;
   };
@@ -208,15 +222,11 @@ TEST(VehicleSim, SteeringStepAtSpeedFollowsTheKinematicLoopsLag) {
       speeds.push_back(car.truth().vx_mps);
     }
     auto model_error = [&](double lag_s) {
-      core::Pose2 pose;
-      double steer = 0.0, wheels = 0.0, worst = 0.0;
+      LaggedBicycle model;
+      double worst = 0.0;
       for (size_t i = 0; i < mujoco.size(); ++i) {
-        steer = std::min(target, steer + loop.steer_rate_rps * dt);
-        wheels += (steer - wheels) * std::min(1.0, dt / std::max(lag_s, 1e-9));
-        const double effective =
-            std::atan(std::tan(wheels) * control::yaw_gain_at(loop.yaw_gain, wheels));
-        pose = vehicle_models::bicycle_step(pose, speeds[i], effective, p.wheelbase_m, dt);
-        worst = std::max(worst, (pose.position() - mujoco[i].position()).norm());
+        model.step(target, loop.steer_rate_rps, lag_s, loop.yaw_gain, p.wheelbase_m, speeds[i], dt);
+        worst = std::max(worst, (model.pose.position() - mujoco[i].position()).norm());
       }
       return worst;
     };
