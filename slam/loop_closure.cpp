@@ -21,6 +21,8 @@ std::string LoopClosureConfig::validate() const {
     s << "loop_closure.big_orange_min_returned: expected >= 0";
   else if (!(start_radius_m > 0.0))
     s << "loop_closure.start_radius_m: expected > 0";
+  else if (!(start_lateral_m > 0.0))
+    s << "loop_closure.start_lateral_m: expected > 0";
   else if (!(start_window_m >= 0.0))
     s << "loop_closure.start_window_m: expected >= 0";
   else if (start_min_returned < 0)
@@ -47,6 +49,16 @@ LoopState next_loop_state(const LoopClosureConfig& config, LoopState state, bool
       return LoopState::kReturned;
   }
   return state;
+}
+
+bool back_at_start(const LoopClosureConfig& config, const core::Pose2& start,
+                   const core::Pose2& pose, double turned_rad) {
+  const core::Vec2 offset = start.inverse_transform(pose.position());
+  const bool turned_once =
+      std::abs(std::abs(turned_rad) - 2.0 * M_PI) <= config.heading_tolerance_rad;
+  return offset.norm() <= config.start_radius_m && std::abs(offset.y()) <= config.start_lateral_m &&
+         std::abs(core::normalize_angle(pose.yaw - start.yaw)) <= config.heading_tolerance_rad &&
+         turned_once;
 }
 
 bool loop_closed(const LoopClosureConfig& config, const LoopClosureStats& stats) {

@@ -9,6 +9,8 @@
 
 #include <string>
 
+#include "core/geometry.hpp"
+
 namespace conesim::slam {
 
 /// Where a landmark stands in the loop closure state machine.
@@ -39,9 +41,14 @@ struct LoopClosureConfig {
   /// first sighting, plus this many returned landmarks, closes the loop.
   double big_orange_heading_rad = 0.5;
   int big_orange_min_returned = 3;
-  /// The lap guard: the estimated pose is within this of the start pose, m, with its heading
-  /// within heading_tolerance_rad of the start heading,
+  /// The lap guard (back_at_start): the estimated pose is within this of the start pose, m,
+  /// with its heading within heading_tolerance_rad of the start heading,
   double start_radius_m = 20.0;
+  /// within this of the line through the start pose along its heading, m (the lap ends in the
+  /// start's lane; on the shared circuits a lap was seen to close up to 4.5 m off that line,
+  /// where the lane bends towards the start),
+  double start_lateral_m = 8.0;
+  /// the car has turned once around since the start, to within heading_tolerance_rad,
   /// and at least start_min_returned of the returned landmarks were first seen within this
   /// distance driven from the start, m.
   double start_window_m = 20.0;
@@ -54,6 +61,15 @@ struct LoopClosureConfig {
   /// Empty when usable, otherwise "loop_closure.key: what was expected".
   std::string validate() const;
 };
+
+/// The lap guard on the pose: true when `pose`, having turned by `turned_rad` (the heading
+/// change summed since the start, not wrapped) is back where the lap began at `start`: within
+/// start_radius_m of it and start_lateral_m of its line, facing its way, and turned once around.
+/// A circuit without crossings turns the car by one full turn a lap, either way; a leg that runs
+/// alongside the start the same way, reached through two opposite hairpins, has turned by none,
+/// and its view of the start's cones is no lap (hard trackdrives 7041 and 7077 closed there).
+bool back_at_start(const LoopClosureConfig& config, const core::Pose2& start,
+                   const core::Pose2& pose, double turned_rad);
 
 /// What a landmark's state becomes after one batch.
 /// in_view: predicted in the field of view; observed: matched in this batch;
@@ -74,7 +90,7 @@ struct LoopClosureStats {
   int old_matched_returned = 0;
   /// A big orange landmark first seen long ago was matched with a consistent heading.
   bool big_orange_returned = false;
-  /// The estimated pose is near the start pose and faces its way.
+  /// The estimated pose is back at the start (back_at_start).
   bool near_start = false;
   /// Returned landmarks that were first seen within start_window_m of the start.
   int start_returned = 0;

@@ -87,6 +87,7 @@ void EkfSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
   closure_travel_m_ = -1.0;
   loop_closures_ = 0;
   travel_m_ = 0.0;
+  turned_rad_ = 0.0;
   speed_mps_ = 0.0;
   yaw_rate_rps_ = 0.0;
   stamp_ = stamp;
@@ -128,6 +129,7 @@ void EkfSlam::predict(const OdometryDelta& odometry) {
     p_.bottomLeftCorner(n - 3, 3) = p_.topRightCorner(3, n - 3).transpose();
   }
   travel_m_ += odometry.distance_m;
+  turned_rad_ += odometry.delta.yaw;
   speed_mps_ = odometry.speed_mps;
   yaw_rate_rps_ = odometry.yaw_rate_rps;
 }
@@ -245,11 +247,14 @@ void EkfSlam::process(const SlamInput& input) {
   const core::Pose2 now = pose();
   const double reach = farthest_m + kReachMarginM;
   // the loop may close once the car has come round: far enough driven, near the start pose and
-  // heading the start's way (a leg passing the start the other way sees its cones too)
+  // heading the start's way (a leg passing the start the other way sees its cones too), having
+  // turned once around (a leg alongside the start the same way, reached through two opposite
+  // hairpins, has turned by none: loop_closure.hpp, back_at_start)
   const bool may_close =
       !loop_open_ && travel_m_ >= config_.loop_min_travel_m &&
       (now.position() - start_.position()).norm() <= 2.0 * config_.start_radius_m &&
-      std::abs(core::normalize_angle(now.yaw - start_.yaw)) <= config_.closure_max_heading_rad;
+      std::abs(core::normalize_angle(now.yaw - start_.yaw)) <= config_.closure_max_heading_rad &&
+      std::abs(std::abs(turned_rad_) - 2.0 * M_PI) <= config_.closure_max_heading_rad;
   // the loop closes on the start's big orange cones; a layout without them (some published
   // ones) closes on the start's other landmarks, several at once
   bool big_orange_closure = false;

@@ -155,6 +155,8 @@ class EkfSlam : public Backend {
   double closure_travel_m_ = -1.0;
   int loop_closures_ = 0;
   double travel_m_ = 0.0;
+  /// The heading change summed since the start (not wrapped): one full turn a lap, rad.
+  double turned_rad_ = 0.0;
   double speed_mps_ = 0.0;
   double yaw_rate_rps_ = 0.0;
   core::TimeUs stamp_ = 0;

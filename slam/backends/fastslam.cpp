@@ -172,6 +172,7 @@ void FastSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
   resamplings_ = 0;
   ess_ = config_.particles;
   travel_m_ = 0.0;
+  turned_rad_ = 0.0;
   speed_mps_ = 0.0;
   yaw_rate_rps_ = 0.0;
   stamp_ = stamp;
@@ -496,9 +497,7 @@ double FastSlam::update_particle(Particle& particle, const SlamInput& input,
   stats->travel_m = travel_m_;
   stats->returned = particle.returned;
   stats->start_returned = particle.start_returned;
-  stats->near_start =
-      (pose.position() - start_.position()).norm() <= lc.start_radius_m &&
-      std::abs(core::normalize_angle(pose.yaw - start_.yaw)) <= lc.heading_tolerance_rad;
+  stats->near_start = back_at_start(lc, start_, pose, turned_rad_);
   return log_weight_factor(terms);
 }
 
@@ -564,6 +563,7 @@ void FastSlam::process(const SlamInput& input) {
   stamp_ = input.observations.stamp;
   labels_ = input.true_ids;
   travel_m_ += input.odometry.distance_m;
+  turned_rad_ += input.odometry.delta.yaw;
   speed_mps_ = input.odometry.speed_mps;
   yaw_rate_rps_ = input.odometry.yaw_rate_rps;
   association_us_ = 0.0;

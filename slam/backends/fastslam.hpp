@@ -215,6 +215,8 @@ class FastSlam : public Backend {
   int resamplings_ = 0;
   double ess_ = 0.0;
   double travel_m_ = 0.0;
+  /// The heading change summed since the start (not wrapped): one full turn a lap, rad.
+  double turned_rad_ = 0.0;
   double speed_mps_ = 0.0;
   double yaw_rate_rps_ = 0.0;
   core::TimeUs stamp_ = 0;

@@ -95,6 +95,7 @@ void GraphSlam::reset(const core::Pose2& initial_pose, core::TimeUs stamp) {
   first_localised_pose_ = 1;
   forgotten_poses_.clear();
   travel_m_ = 0.0;
+  turned_rad_ = 0.0;
   speed_mps_ = 0.0;
   yaw_rate_rps_ = 0.0;
 }
@@ -159,6 +160,7 @@ void GraphSlam::predict(const OdometryDelta& odometry) {
   node.stamp = odometry.to;
   node.x = {pose.x, pose.y, pose.yaw};
   travel_m_ += odometry.distance_m;
+  turned_rad_ += delta.yaw;
   node.travel_m = travel_m_;
   node.odometry.reset(
       OdometryResidual::Create(measured, sqrt_information<3>(odometry.covariance), dt_s));
@@ -457,9 +459,7 @@ LoopClosureStats GraphSlam::update_landmark_statistics() {
   stats.travel_m = travel_m_;
   const core::Pose2 start = poses_.front().pose();
   const LoopClosureConfig& lc = config_.loop_closure;
-  stats.near_start =
-      (pose.position() - start.position()).norm() <= lc.start_radius_m &&
-      std::abs(core::normalize_angle(pose.yaw - start.yaw)) <= lc.heading_tolerance_rad;
+  stats.near_start = back_at_start(lc, start, pose, turned_rad_);
   auto count_returned = [&](const Landmark& lm) {
     ++stats.returned;
     if (lm.first_travel_m <= lc.start_window_m) ++stats.start_returned;

@@ -246,6 +246,8 @@ class GraphSlam : public Backend {
   /// Poses [0, folded_poses_) have their observation edges folded into landmark priors.
   int folded_poses_ = 0;
   double travel_m_ = 0.0;
+  /// The heading change summed since the start (not wrapped): one full turn a lap, rad.
+  double turned_rad_ = 0.0;
   double association_us_ = 0.0;
   double speed_mps_ = 0.0;
   double yaw_rate_rps_ = 0.0;

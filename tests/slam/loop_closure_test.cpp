@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 namespace conesim::slam {
 namespace {
 
@@ -31,7 +33,7 @@ TEST(LoopState, NoReturnTooSoonOrFromTheOtherSide) {
 }
 
 // the lap guard passed: near the start pose, with the start's landmarks returned
-LoopClosureStats back_at_start() {
+LoopClosureStats guard_passed() {
   LoopClosureStats s;
   s.near_start = true;
   s.start_returned = LoopClosureConfig{}.start_min_returned;
@@ -40,7 +42,7 @@ LoopClosureStats back_at_start() {
 
 TEST(LoopClosure, ClosesOnEnoughConsistentReturnedLandmarks) {
   const LoopClosureConfig c;
-  LoopClosureStats s = back_at_start();
+  LoopClosureStats s = guard_passed();
   s.travel_m = 300.0;
   s.returned = 8;
   s.old_matched = 6;
@@ -53,7 +55,7 @@ TEST(LoopClosure, ClosesOnEnoughConsistentReturnedLandmarks) {
 
 TEST(LoopClosure, GuardsAgainstFalseTriggers) {
   const LoopClosureConfig c;
-  LoopClosureStats s = back_at_start();
+  LoopClosureStats s = guard_passed();
   s.returned = 20;
   s.old_matched = 6;
   s.old_matched_returned = 6;
@@ -94,7 +96,7 @@ TEST(LoopClosure, HairpinReturnsAreNotALap) {
 
 TEST(LoopClosure, BigOrangeCueNeedsOnlyAFewReturnedLandmarks) {
   const LoopClosureConfig c;
-  LoopClosureStats s = back_at_start();
+  LoopClosureStats s = guard_passed();
   s.travel_m = 300.0;
   s.returned = 3;
   s.old_matched = 3;
@@ -108,6 +110,41 @@ TEST(LoopClosure, BigOrangeCueNeedsOnlyAFewReturnedLandmarks) {
   EXPECT_FALSE(loop_closed(c, s));
 }
 
+TEST(LoopClosure, BackAtStartAfterOneTurnEitherWay) {
+  const LoopClosureConfig c;
+  const core::Pose2 start{-2.0, 1.0, 0.3};
+  // a lap ending a few metres behind the start in its lane, having turned once around, either way
+  const core::Pose2 behind = start.compose({-12.0, 1.5, 0.2});
+  EXPECT_TRUE(back_at_start(c, start, behind, 2.0 * M_PI + 0.2));
+  EXPECT_TRUE(back_at_start(c, start, behind, -2.0 * M_PI + 0.2));
+  // the heading summed since the start may be off by the odometry's drift, up to the tolerance
+  EXPECT_TRUE(back_at_start(c, start, behind, 2.0 * M_PI + c.heading_tolerance_rad - 0.01));
+  EXPECT_FALSE(back_at_start(c, start, behind, 2.0 * M_PI + c.heading_tolerance_rad + 0.01));
+  // no turn, or two turns (a spiral), is no lap of a circuit without crossings
+  EXPECT_FALSE(back_at_start(c, start, behind, 0.2));
+  EXPECT_FALSE(back_at_start(c, start, behind, 4.0 * M_PI + 0.2));
+  // facing the other way, or beyond start_radius_m: not back
+  EXPECT_FALSE(back_at_start(c, start, start.compose({-12.0, 1.5, M_PI}), 3.0 * M_PI));
+  EXPECT_FALSE(
+      back_at_start(c, start, start.compose({-c.start_radius_m - 0.1, 0.0, 0.0}), 2.0 * M_PI));
+}
+
+TEST(LoopClosure, ALegAlongsideTheStartIsNoLap) {
+  // hard trackdrives 7041 and 7077 start on a straight into a hairpin, then a second hairpin the
+  // other way leads onto a leg beside the start straight, 16-18 m over and the same way: the
+  // start's cones come back into view from their first heading, 160 m into a 460 m lap. The car
+  // has turned by about zero there, not by a full turn
+  const LoopClosureConfig c;
+  const core::Pose2 start{0.0, 0.0, 0.0};
+  const core::Pose2 beside{-2.85, 15.7, 0.61};
+  EXPECT_FALSE(back_at_start(c, start, beside, 0.61));
+  // a full turn would not make it a lap either: it is 15.7 m off the start's line
+  EXPECT_FALSE(back_at_start(c, start, beside, 2.0 * M_PI + 0.61));
+  // nor does a lane 8 m over (beyond start_lateral_m), while one in the start's lane is
+  EXPECT_FALSE(back_at_start(c, start, {-5.0, c.start_lateral_m + 0.1, 0.0}, 2.0 * M_PI));
+  EXPECT_TRUE(back_at_start(c, start, {-5.0, c.start_lateral_m - 0.1, 0.0}, 2.0 * M_PI));
+}
+
 TEST(LoopClosureConfig, ValidateNamesTheBadKey) {
   LoopClosureConfig c;
   EXPECT_EQ(c.validate(), "");
@@ -116,6 +153,9 @@ TEST(LoopClosureConfig, ValidateNamesTheBadKey) {
   c = LoopClosureConfig{};
   c.start_radius_m = 0.0;
   EXPECT_NE(c.validate().find("loop_closure.start_radius_m"), std::string::npos);
+  c = LoopClosureConfig{};
+  c.start_lateral_m = -1.0;
+  EXPECT_NE(c.validate().find("loop_closure.start_lateral_m"), std::string::npos);
 }
 
 }  // namespace
