@@ -204,15 +204,6 @@ ManoeuvreChoice choose_manoeuvre(const ManoeuvreParams& p, const Pose2& pose, do
   };
   if (previous && previous->wait_s >= 0.0 && previous->wait_s + previous->hold_s > 0.0) {
     consider(*previous);
-    // its turn-in as planned with the other holds: the wait grid may not hold the wait left, and
-    // a hold chosen at the approach can turn out too long at the exit. Hard trackdrive 7159 with
-    // GraphSLAM, lap 1: waiting 0.25 s straight then 2.5 s at full lock ran into the hairpin's
-    // exit cones as the car came nearer (0.27 -> -0.07 m in one tick); waits of 0.2 and 0.35 s
-    // were too early and too late, the car turned in on the path 0.6 m early and hit the apex
-    if (previous->wait_s > 0.0)
-      for (const double hold : p.hold_s)
-        if (hold != previous->hold_s)
-          consider({previous->wait_s, hold, previous->side, previous->straight});
     // the manoeuvre under way stays unless another one is clearly better
     if (!best.nominal || best.manoeuvre.wait_s >= 0.0) needed_gain = kClearanceGainM;
   }
