@@ -206,6 +206,15 @@ ManoeuvreChoice choose_manoeuvre(const ManoeuvreParams& p, const Pose2& pose, do
     consider(*previous);
     // the manoeuvre under way stays unless another one is clearly better
     if (!best.nominal || best.manoeuvre.wait_s >= 0.0) needed_gain = kClearanceGainM;
+    // its turn-in as planned with the other holds, which must gain as much: the wait grid may
+    // not hold the wait left, and a hold chosen at the approach can turn out too long at the exit
+    // (hard trackdrive 7159 with GraphSLAM, lap 1: straight for 0.25 s more, then 2.5 s at full
+    // lock, fell from 0.27 to -0.07 m at the exit in one tick; the grid's straight waits, 0.2
+    // and 0.35 s, were too early and too late)
+    if (previous->wait_s > 0.0)
+      for (const double hold : p.hold_s)
+        if (hold != previous->hold_s)
+          consider({previous->wait_s, hold, previous->side, previous->straight});
   }
   // full lock towards the tight turn ahead, and towards the side the steering is on
   double tightest = 0.0;
@@ -231,6 +240,13 @@ ManoeuvreChoice choose_manoeuvre(const ManoeuvreParams& p, const Pose2& pose, do
         // and straight and the car turned in late (generated hard trackdrive 7177, lap 1)
         if (straight && side == steer_side &&
             std::abs(steer_now_rad) >= kCommittedSteerShare * p.max_steer_rad)
+          continue;
+        // a lock at full lock promised after following the path is not put off: re-chosen
+        // tick after tick with the same wait, the lock never came while the tracker turned in
+        // early and gently, and the car cut inside to the apex cone (hard trackdrive 7159 with
+        // GraphSLAM, lap 1; hard autocross 7110)
+        if (!straight && wait > 0.0 && previous && previous->wait_s > 0.0 && !previous->straight &&
+            previous->side == side && wait > previous->wait_s + 1e-9)
           continue;
         for (const double hold : p.hold_s) consider({wait, hold, side, straight});
       }

@@ -120,5 +120,60 @@ TEST(Manoeuvre, LeavesTheSteeringToTheTrackerWhenNothingKeepsClear) {
   EXPECT_DOUBLE_EQ(c.steer_rad, 0.123);
 }
 
+TEST(Manoeuvre, AManoeuvreUnderWayKeepsItsTurnInWithAnotherHold) {
+  // the hairpin of the turn-in test with its exit lane coned too. Under way: hold straight
+  // 0.45 s more, then full lock for 3 s, which turns the car past the exit lane. The grid's
+  // fresh candidates turn in on the path at once (0.188 m: the early turn-in that hit the apex
+  // of hard trackdrive 7159 with GraphSLAM) or straight too early or too late; the turn-in
+  // under way with a shorter hold keeps clearer, and the car goes on straight
+  Hairpin h = hairpin(3.0, 1.5);
+  for (double x = 20.0; x > 10.0; x -= 2.0) {
+    h.cones.push_back(cone_at(x, 6.0 + 1.5));
+    h.cones.push_back(cone_at(x, 6.0 - 1.5));
+  }
+  const Pose2 pose{17.5, 0.0, 0.0};
+  const PathProjection here = project_onto(h.path, pose.position(), 0, h.path.segment_count());
+  const ManoeuvreChoice fresh =
+      choose_manoeuvre(params(), pose, 4.0, 0.0, h.path, here, kHoldSpeed, h.cones, 0.05);
+  const Manoeuvre under_way{0.45, 3.0, 1.0, true};
+  const ManoeuvreChoice c = choose_manoeuvre(params(), pose, 4.0, 0.0, h.path, here, kHoldSpeed,
+                                             h.cones, 0.05, &under_way);
+  std::printf(
+      "fresh: wait %.2f s (%s), hold %.2f s: %.3f m; under way: wait %.2f s (%s), hold "
+      "%.2f s: %.3f m\n",
+      fresh.manoeuvre.wait_s, fresh.manoeuvre.straight ? "straight" : "on the path",
+      fresh.manoeuvre.hold_s, fresh.clearance_m, c.manoeuvre.wait_s,
+      c.manoeuvre.straight ? "straight" : "on the path", c.manoeuvre.hold_s, c.clearance_m);
+  EXPECT_NEAR(c.manoeuvre.wait_s, 0.45, 1e-9);
+  EXPECT_TRUE(c.manoeuvre.straight);
+  EXPECT_LT(c.manoeuvre.hold_s, 3.0);
+  EXPECT_DOUBLE_EQ(c.steer_rad, 0.0);
+  EXPECT_GT(c.clearance_m, fresh.clearance_m + 0.02);
+}
+
+TEST(Manoeuvre, ALockPromisedAfterFollowingThePathIsNotPutOff) {
+  // under way: follow the path 0.3 s more, then full lock. A fresh "follow the path 0.5 s, then
+  // lock" looks better to the roll-outs tick after tick, and chosen each time it never locks
+  // while the tracker turns in early and gently (hard trackdrive 7159 with GraphSLAM, hard
+  // autocross 7110): the lock may come sooner, not later
+  Hairpin h = hairpin(3.0, 1.5);
+  for (double x = 20.0; x > 10.0; x -= 2.0) {
+    h.cones.push_back(cone_at(x, 6.0 + 1.5));
+    h.cones.push_back(cone_at(x, 6.0 - 1.5));
+  }
+  for (const double x0 : {17.0, 17.5, 18.0}) {
+    const Pose2 pose{x0, 0.0, 0.0};
+    const PathProjection here = project_onto(h.path, pose.position(), 0, h.path.segment_count());
+    const Manoeuvre under_way{0.3, 2.0, 1.0, false};
+    const ManoeuvreChoice c = choose_manoeuvre(params(), pose, 4.0, 0.1, h.path, here, kHoldSpeed,
+                                               h.cones, 0.1, &under_way);
+    std::printf("x0 %.1f: wait %.2f s (%s), hold %.2f s: %.3f m\n", x0, c.manoeuvre.wait_s,
+                c.manoeuvre.straight ? "straight" : "on the path", c.manoeuvre.hold_s,
+                c.clearance_m);
+    if (c.manoeuvre.wait_s > 0.0 && !c.manoeuvre.straight)
+      EXPECT_LE(c.manoeuvre.wait_s, 0.3 + 1e-9);
+  }
+}
+
 }  // namespace
 }  // namespace conesim::control
