@@ -51,11 +51,14 @@ LoopState next_loop_state(const LoopClosureConfig& config, LoopState state, bool
   return state;
 }
 
+bool turned_once_around(double turned_rad, double tolerance_rad) {
+  return std::abs(std::abs(turned_rad) - 2.0 * M_PI) <= tolerance_rad;
+}
+
 bool back_at_start(const LoopClosureConfig& config, const core::Pose2& start,
                    const core::Pose2& pose, double turned_rad) {
   const core::Vec2 offset = start.inverse_transform(pose.position());
-  const bool turned_once =
-      std::abs(std::abs(turned_rad) - 2.0 * M_PI) <= config.heading_tolerance_rad;
+  const bool turned_once = turned_once_around(turned_rad, config.heading_tolerance_rad);
   return offset.norm() <= config.start_radius_m && std::abs(offset.y()) <= config.start_lateral_m &&
          std::abs(core::normalize_angle(pose.yaw - start.yaw)) <= config.heading_tolerance_rad &&
          turned_once;

@@ -62,6 +62,10 @@ struct LoopClosureConfig {
   std::string validate() const;
 };
 
+/// True when `turned_rad`, a heading change summed over a drive (not wrapped), is one full turn
+/// either way, to within `tolerance_rad`: what one lap of a circuit without crossings turns.
+bool turned_once_around(double turned_rad, double tolerance_rad);
+
 /// The lap guard on the pose: true when `pose`, having turned by `turned_rad` (the heading
 /// change summed since the start, not wrapped) is back where the lap began at `start`: within
 /// start_radius_m of it and start_lateral_m of its line, facing its way, and turned once around.

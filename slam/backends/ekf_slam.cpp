@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "slam/association/ml_association.hpp"
+#include "slam/loop_closure.hpp"
 
 namespace conesim::slam {
 
@@ -254,7 +255,7 @@ void EkfSlam::process(const SlamInput& input) {
       !loop_open_ && travel_m_ >= config_.loop_min_travel_m &&
       (now.position() - start_.position()).norm() <= 2.0 * config_.start_radius_m &&
       std::abs(core::normalize_angle(now.yaw - start_.yaw)) <= config_.closure_max_heading_rad &&
-      std::abs(std::abs(turned_rad_) - 2.0 * M_PI) <= config_.closure_max_heading_rad;
+      turned_once_around(turned_rad_, config_.closure_max_heading_rad);
   // the loop closes on the start's big orange cones; a layout without them (some published
   // ones) closes on the start's other landmarks, several at once
   bool big_orange_closure = false;

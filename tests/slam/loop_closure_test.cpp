@@ -129,6 +129,14 @@ TEST(LoopClosure, BackAtStartAfterOneTurnEitherWay) {
       back_at_start(c, start, start.compose({-c.start_radius_m - 0.1, 0.0, 0.0}), 2.0 * M_PI));
 }
 
+TEST(LoopClosure, OneFullTurnEitherWay) {
+  EXPECT_TRUE(turned_once_around(2.0 * M_PI, 0.1));
+  EXPECT_TRUE(turned_once_around(-2.0 * M_PI + 0.09, 0.1));
+  EXPECT_FALSE(turned_once_around(2.0 * M_PI + 0.11, 0.1));
+  EXPECT_FALSE(turned_once_around(0.05, 0.1));
+  EXPECT_FALSE(turned_once_around(4.0 * M_PI, 0.1));
+}
+
 TEST(LoopClosure, ALegAlongsideTheStartIsNoLap) {
   // hard trackdrives 7041 and 7077 start on a straight into a hairpin, then a second hairpin the
   // other way leads onto a leg beside the start straight, 16-18 m over and the same way: the
