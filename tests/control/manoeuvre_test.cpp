@@ -65,6 +65,17 @@ Hairpin hairpin(double r, double half_width) {
   return h;
 }
 
+// the turn-in tests' hairpin (3 m radius, cones 1.5 m either side) with its exit lane coned too
+// for 10 m: a manoeuvre that turns the car past the exit lane runs into those cones
+Hairpin hairpin_with_exit_lane() {
+  Hairpin h = hairpin(3.0, 1.5);
+  for (double x = 20.0; x > 10.0; x -= 2.0) {
+    h.cones.push_back(cone_at(x, 6.0 + 1.5));
+    h.cones.push_back(cone_at(x, 6.0 - 1.5));
+  }
+  return h;
+}
+
 ManoeuvreParams params() {
   ManoeuvreParams p;
   const VehicleGeometry v;
@@ -126,11 +137,7 @@ TEST(Manoeuvre, AManoeuvreUnderWayKeepsItsTurnInWithAnotherHold) {
   // fresh candidates turn in on the path at once (0.188 m: the early turn-in that hit the apex
   // of hard trackdrive 7159 with GraphSLAM) or straight too early or too late; the turn-in
   // under way with a shorter hold keeps clearer, and the car goes on straight
-  Hairpin h = hairpin(3.0, 1.5);
-  for (double x = 20.0; x > 10.0; x -= 2.0) {
-    h.cones.push_back(cone_at(x, 6.0 + 1.5));
-    h.cones.push_back(cone_at(x, 6.0 - 1.5));
-  }
+  const Hairpin h = hairpin_with_exit_lane();
   const Pose2 pose{17.5, 0.0, 0.0};
   const PathProjection here = project_onto(h.path, pose.position(), 0, h.path.segment_count());
   const ManoeuvreChoice fresh =
@@ -156,11 +163,7 @@ TEST(Manoeuvre, ALockPromisedAfterFollowingThePathIsNotPutOff) {
   // lock" looks better to the roll-outs tick after tick, and chosen each time it never locks
   // while the tracker turns in early and gently (hard trackdrive 7159 with GraphSLAM, hard
   // autocross 7110): the lock may come sooner, not later
-  Hairpin h = hairpin(3.0, 1.5);
-  for (double x = 20.0; x > 10.0; x -= 2.0) {
-    h.cones.push_back(cone_at(x, 6.0 + 1.5));
-    h.cones.push_back(cone_at(x, 6.0 - 1.5));
-  }
+  const Hairpin h = hairpin_with_exit_lane();
   for (const double x0 : {17.0, 17.5, 18.0}) {
     const Pose2 pose{x0, 0.0, 0.0};
     const PathProjection here = project_onto(h.path, pose.position(), 0, h.path.segment_count());
