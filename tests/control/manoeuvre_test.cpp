@@ -173,8 +173,9 @@ TEST(Manoeuvre, ALockPromisedAfterFollowingThePathIsNotPutOff) {
     std::printf("x0 %.1f: wait %.2f s (%s), hold %.2f s: %.3f m\n", x0, c.manoeuvre.wait_s,
                 c.manoeuvre.straight ? "straight" : "on the path", c.manoeuvre.hold_s,
                 c.clearance_m);
-    if (c.manoeuvre.wait_s > 0.0 && !c.manoeuvre.straight)
+    if (c.manoeuvre.wait_s > 0.0 && !c.manoeuvre.straight) {
       EXPECT_LE(c.manoeuvre.wait_s, 0.3 + 1e-9);
+    }
   }
 }
 
