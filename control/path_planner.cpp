@@ -22,6 +22,10 @@ constexpr double kStartAheadM = 15.0;
 constexpr double kMinLinkM = 0.5;
 // the turn a chain is expected to keep from one link to the next is capped at this, radians
 constexpr double kMaxPredictedTurnRad = 0.6;
+// links costing within this share of the cheapest are told apart by the link after each, when
+// the last link turned by this much or more (radians): the guess that the turn goes on is tried
+constexpr double kAmbiguousLinkShare = 0.25;
+constexpr double kTurnGuessRad = 0.1;
 // a closed chain needs this many cones before it may return to its first one
 constexpr size_t kMinClosedChainCones = 8;
 // a walk may run straight before the first cone of a boundary for this long, metres
@@ -77,30 +81,66 @@ std::vector<Vec2> chain_one(const std::vector<MapCone>& cones, ConeClass side_cl
   // a link is judged against the direction the boundary would take if it kept turning as it
   // did at the last cone (a constant-curvature guess), so that a turn is followed rather than
   // cut short by cones of a nearby part of the track
+  auto link_cost = [&](const Vec2& cur, const Vec2& dir, double last_turn, size_t i,
+                       bool continuation) {
+    const bool closing_allowed = !continuation;
+    const bool is_first = closing_allowed && whole_circuit && static_cast<int>(i) == first &&
+                          chain.size() >= kMinClosedChainCones;
+    constexpr double kNone = std::numeric_limits<double>::infinity();
+    if (used[i] && !is_first) return kNone;
+    const double penalty = class_penalty(cones[i].cls, side_class, params);
+    if (penalty < 0.0) return kNone;
+    const Vec2 v = cones[i].position - cur;
+    const double d = v.norm();
+    if (d < kMinLinkM || d > params.max_link_m) return kNone;
+    const double turn = std::atan2(core::cross(dir, v), dir.dot(v));
+    const double max_turn = !whole_circuit && d <= params.short_link_m
+                                ? params.max_short_link_turn_rad
+                                : params.max_link_turn_rad;
+    if (std::abs(turn) > max_turn) return kNone;
+    const double bend = turn - std::clamp(last_turn, -kMaxPredictedTurnRad, kMaxPredictedTurnRad);
+    return d * (1.0 + params.turn_weight * bend * bend) + (continuation ? 0.0 : penalty);
+  };
+  // while the chain is turning, a cone nearly as cheap a link as the cheapest is told apart from
+  // it by the link that could follow each: where a turn ends, the guess that it goes on favours a
+  // cone of the part of the track the turn led past, which the boundary cannot follow on from (hard
+  // trackdrive 7125 with the LiDAR, lap 1: at the exit of a minimum hairpin the yellow chain
+  // went 3.9 m to the start straight's cones instead of 2.0 m along its own leg, costs 3.9
+  // against 4.2; the path bent 0.5 m towards the inner cones and every full-lock manoeuvre scored
+  // a hit at the exit). The link after counts its shape and length only (an off-class cone's
+  // penalty is the link's own); a cone with no link after it counts its own link once more.
+  auto link_after = [&](const Vec2& cur, const Vec2& dir, size_t i) {
+    if (static_cast<int>(i) == first) return 0.0;
+    const Vec2 v = cones[i].position - cur;
+    const double turn = std::atan2(core::cross(dir, v), dir.dot(v));
+    const bool was_used = used[i];
+    used[i] = true;
+    double after = std::numeric_limits<double>::infinity();
+    for (size_t j = 0; j < cones.size(); ++j)
+      after = std::min(after, link_cost(cones[i].position, v.normalized(), turn, j, true));
+    used[i] = was_used;
+    return std::isfinite(after) ? after : v.norm();
+  };
   Vec2 dir = from.heading();
   double last_turn = 0.0;
   double length = 0.0;
+  std::vector<double> costs(cones.size());
   while (length < max_length_m) {
-    const Vec2& cur = chain.back();
+    const Vec2 cur = chain.back();
     int next = -1;
     best = std::numeric_limits<double>::infinity();
     for (size_t i = 0; i < cones.size(); ++i) {
-      const bool is_first =
-          whole_circuit && static_cast<int>(i) == first && chain.size() >= kMinClosedChainCones;
-      if (used[i] && !is_first) continue;
-      const double penalty = class_penalty(cones[i].cls, side_class, params);
-      if (penalty < 0.0) continue;
-      const Vec2 v = cones[i].position - cur;
-      const double d = v.norm();
-      if (d < kMinLinkM || d > params.max_link_m) continue;
-      const double turn = std::atan2(core::cross(dir, v), dir.dot(v));
-      const double max_turn = !whole_circuit && d <= params.short_link_m
-                                  ? params.max_short_link_turn_rad
-                                  : params.max_link_turn_rad;
-      if (std::abs(turn) > max_turn) continue;
-      const double bend = turn - std::clamp(last_turn, -kMaxPredictedTurnRad, kMaxPredictedTurnRad);
-      const double cost = d * (1.0 + params.turn_weight * bend * bend) + penalty;
-      if (cost < best) best = cost, next = static_cast<int>(i);
+      costs[i] = link_cost(cur, dir, last_turn, i, false);
+      if (costs[i] < best) best = costs[i], next = static_cast<int>(i);
+    }
+    if (next >= 0 && std::abs(last_turn) >= kTurnGuessRad) {
+      const double close_enough = best * (1.0 + kAmbiguousLinkShare);
+      double best_continued = std::numeric_limits<double>::infinity();
+      for (size_t i = 0; i < cones.size(); ++i) {
+        if (costs[i] > close_enough) continue;
+        const double continued = costs[i] + link_after(cur, dir, i);
+        if (continued < best_continued) best_continued = continued, next = static_cast<int>(i);
+      }
     }
     if (next < 0) break;
     if (next == first) {

@@ -10,6 +10,7 @@
 #include <numbers>
 #include <string>
 
+#include "control/path_planner.hpp"
 #include "control/racing_line.hpp"
 #include "kinematic_loop.hpp"
 #include "test_tracks.hpp"
@@ -169,6 +170,60 @@ TEST(HardTracks, ExplorationFollowsAHairpinTipBesideAnotherPartOfTheTrack) {
   // part; the exploration's path then crossed the hairpin's outer boundary (in the MuJoCo car:
   // three cones hit, two off-courses, and no lap within the time limit)
   drive_hard_trackdrive(7195);
+}
+
+TEST(HardTracks, ABoundaryLeavingAMinimumHairpinKeepsToItsOwnLeg) {
+  // generated hard trackdrive 7125: a 75 m start straight ends in a minimum hairpin whose exit
+  // leg runs back 5.5 m beside the straight. Seen from the car at the hairpin's entry, the
+  // yellow chain came out of the turn and, guessing the turn went on, linked 3.9 m to the
+  // straight's own yellow cones instead of 2.0 m along its leg; the exploration's path bent to
+  // 1.07 m from the inner cones of the leg, and with the LiDAR the car hit two outer cones at the
+  // entry (the full-lock manoeuvres scored a hit on that path at the exit and left the turn-in
+  // late)
+  tracks::GeneratorParams g;
+  g.profile = tracks::GeneratorProfile::kHard;
+  const tracks::Track track = tracks::generate_circuit(7125, g);
+  const core::Pose2 pose{70.5, 0.0, 0.0};
+  std::vector<core::MapCone> cones;
+  for (const tracks::Cone& c : track.cones)
+    if ((c.position - pose.position()).norm() <= 30.0) cones.push_back({c.id, c.cls, c.position});
+  ASSERT_GT(cones.size(), 40u);
+
+  // each link of a chain joins cones next to each other along its boundary (or one apart, a
+  // missed cone)
+  const auto along_lane = [&](const std::vector<Vec2>& chain, const std::vector<int>& lane) {
+    auto index_of = [&](const Vec2& p) {
+      for (size_t i = 0; i < lane.size(); ++i)
+        if ((track.cones[static_cast<size_t>(lane[i])].position - p).norm() < 1e-9)
+          return static_cast<int>(i);
+      return -1;
+    };
+    for (size_t k = 1; k < chain.size(); ++k) {
+      const int a = index_of(chain[k - 1]), b = index_of(chain[k]);
+      EXPECT_GE(a, 0);
+      EXPECT_GE(b, 0);
+      const int n = static_cast<int>(lane.size());
+      const int step = ((b - a) % n + n) % n;
+      EXPECT_TRUE(step == 1 || step == 2)
+          << "link (" << chain[k - 1].x() << ", " << chain[k - 1].y() << ") -> (" << chain[k].x()
+          << ", " << chain[k].y() << ") skips " << step - 1 << " cones of its boundary";
+    }
+  };
+  const Boundaries b = chain_boundaries(cones, pose, {}, 25.0, false);
+  ASSERT_GE(b.left.size(), 10u);
+  ASSERT_GE(b.right.size(), 10u);
+  along_lane(b.left, track.left_lane);
+  along_lane(b.right, track.right_lane);
+
+  // the path keeps to the lanes' middle: 1.6 m from the cones in the straights, 1.43 m at the
+  // closest (round the hairpin)
+  const Path path = plan_local_path(cones, pose, {}, 25.0);
+  ASSERT_GE(path.length(), 20.0);
+  double closest = std::numeric_limits<double>::infinity();
+  for (const core::MapCone& c : cones)
+    closest = std::min(closest, project_onto(path, c.position, 0, path.segment_count()).distance_m);
+  std::printf("path to the nearest cone: %.3f m\n", closest);
+  EXPECT_GT(closest, 1.3);
 }
 
 }  // namespace
