@@ -26,6 +26,9 @@ constexpr double kMaxPredictedTurnRad = 0.6;
 // the last link turned by this much or more (radians): the guess that the turn goes on is tried
 constexpr double kAmbiguousLinkShare = 0.25;
 constexpr double kTurnGuessRad = 0.1;
+// the link into a chain's first cone, which gives the boundary's direction there, is at most
+// this long, metres (cones stand up to 5 m apart along a boundary)
+constexpr double kMaxBackLinkM = 5.5;
 // a closed chain needs this many cones before it may return to its first one
 constexpr size_t kMinClosedChainCones = 8;
 // a walk may run straight before the first cone of a boundary for this long, metres
@@ -46,6 +49,63 @@ double class_penalty(ConeClass cls, ConeClass side_class, const PlannerParams& p
   if (cls == ConeClass::kOrangeSmall || cls == ConeClass::kOrangeBig || cls == ConeClass::kUnknown)
     return params.off_class_penalty_m;
   return -1.0;
+}
+
+// the direction a boundary runs at its first cone and the turn it made there, from the two
+// cones before it on the boundary (all three of the boundary's own colour, short links apart,
+// the nearer one beside the car and behind the first cone); without them the car's heading and
+// no turn. Inside a hairpin
+// the car's heading lags the boundary's: a chain started at the apex with the car's heading took
+// the inner cones' turn for a bend and linked 8.6 m on to the start's big orange cones (hard
+// trackdrive 7069, LiDAR, lap 1: the path looped back on itself and the car unwound
+// mid-hairpin), or 3.3 m across to the next lane's cone instead of 4.0 m along its own (hard
+// trackdrive 7131, GraphSLAM, lap 1). The turn matters at a hairpin's tip: with the direction
+// alone, the tip's next cone looked a 1.4 rad turn and the chain jumped 9.7 m to a cone of
+// another part of the track (hard trackdrive 7195)
+struct ChainStart {
+  Vec2 dir;
+  double last_turn = 0.0;
+};
+ChainStart chain_start(const std::vector<MapCone>& cones, ConeClass side_class, double side,
+                       const Pose2& from, const PlannerParams& params,
+                       const std::vector<bool>& used, int first) {
+  const double hw = params.assumed_half_width_m;
+  ChainStart start{from.heading(), 0.0};
+  // an orange first cone (a start gate's, a time-keeping one) stands off the boundary's line
+  if (cones[static_cast<size_t>(first)].cls != side_class) return start;
+  // up to two links back from the first cone, each one behind the cone it leads to
+  size_t at = static_cast<size_t>(first);
+  Vec2 reference = from.heading();
+  for (int back = 0; back < 2; ++back) {
+    const double at_x = from.inverse_transform(cones[at].position).x();
+    double best = std::numeric_limits<double>::infinity();
+    int before = -1;
+    for (size_t i = 0; i < cones.size(); ++i) {
+      if (used[i] || i == at || cones[i].cls != side_class) continue;
+      // the cone before the first is beside the car as the first is; the one before that (round a
+      // hairpin's tip, beside nothing) only leads on to it within the turn limit
+      const Vec2 local = from.inverse_transform(cones[i].position);
+      const double lateral = side * local.y();
+      if (back == 0 && (local.x() > at_x - kMinLinkM || lateral < 0.3 || lateral > 2.0 * hw + 0.5))
+        continue;
+      const Vec2 v = cones[at].position - cones[i].position;
+      const double d = v.norm();
+      if (d < kMinLinkM || d > kMaxBackLinkM) continue;
+      const double turn = std::atan2(core::cross(reference, v), reference.dot(v));
+      if (std::abs(turn) > params.max_link_turn_rad) continue;
+      const double cost = d * (1.0 + params.turn_weight * turn * turn);
+      if (cost < best) best = cost, before = static_cast<int>(i);
+    }
+    if (before < 0) break;
+    const Vec2 v = (cones[at].position - cones[static_cast<size_t>(before)].position).normalized();
+    if (back == 0)
+      start.dir = v;
+    else
+      start.last_turn = std::atan2(core::cross(v, start.dir), v.dot(start.dir));
+    reference = v;
+    at = static_cast<size_t>(before);
+  }
+  return start;
 }
 
 // one boundary chained from the cone beside `from` on side `side` (+1 left, -1 right)
@@ -121,8 +181,9 @@ std::vector<Vec2> chain_one(const std::vector<MapCone>& cones, ConeClass side_cl
     used[i] = was_used;
     return std::isfinite(after) ? after : v.norm();
   };
-  Vec2 dir = from.heading();
-  double last_turn = 0.0;
+  const ChainStart start = chain_start(cones, side_class, side, from, params, used, first);
+  Vec2 dir = start.dir;
+  double last_turn = start.last_turn;
   double length = 0.0;
   std::vector<double> costs(cones.size());
   while (length < max_length_m) {

@@ -47,12 +47,16 @@ void expect_clean(const LoopResult& r, double min_clearance_m = kMinClearanceM) 
   EXPECT_GT(r.min_clearance_m, min_clearance_m);
 }
 
-// the generated hard-profile trackdrive of a seed, driven clean and inside the lanes throughout
-LoopResult drive_hard_trackdrive(uint64_t seed) {
+tracks::Track hard_trackdrive(uint64_t seed) {
   tracks::GeneratorParams g;
   g.profile = tracks::GeneratorProfile::kHard;
+  return tracks::generate_circuit(seed, g);
+}
+
+// the generated hard-profile trackdrive of a seed, driven clean and inside the lanes throughout
+LoopResult drive_hard_trackdrive(uint64_t seed) {
   const std::string name = "hard trackdrive " + std::to_string(seed);
-  const LoopResult r = drive(tracks::generate_circuit(seed, g), name.c_str());
+  const LoopResult r = drive(hard_trackdrive(seed), name.c_str());
   expect_clean(r);
   EXPECT_EQ(r.max_outside_m, 0.0) << name << ": outside the lanes at (" << r.max_outside_at.x()
                                   << ", " << r.max_outside_at.y() << ")";
@@ -172,6 +176,36 @@ TEST(HardTracks, ExplorationFollowsAHairpinTipBesideAnotherPartOfTheTrack) {
   drive_hard_trackdrive(7195);
 }
 
+// the cones the exploration plans from: those within 30 m of the car
+std::vector<core::MapCone> cones_in_reach(const tracks::Track& track, const core::Pose2& pose) {
+  std::vector<core::MapCone> cones;
+  for (const tracks::Cone& c : track.cones)
+    if ((c.position - pose.position()).norm() <= 30.0) cones.push_back({c.id, c.cls, c.position});
+  return cones;
+}
+
+// each link of a chain joins cones next to each other along their boundary (or one apart, a
+// missed cone), in the direction of travel
+void expect_along_lane(const tracks::Track& track, const std::vector<Vec2>& chain,
+                       const std::vector<int>& lane, const std::string& name) {
+  auto index_of = [&](const Vec2& p) {
+    for (size_t i = 0; i < lane.size(); ++i)
+      if ((track.cones[static_cast<size_t>(lane[i])].position - p).norm() < 1e-9)
+        return static_cast<int>(i);
+    return -1;
+  };
+  for (size_t k = 1; k < chain.size(); ++k) {
+    const int a = index_of(chain[k - 1]), b = index_of(chain[k]);
+    EXPECT_GE(a, 0);
+    EXPECT_GE(b, 0);
+    const int n = static_cast<int>(lane.size());
+    const int step = ((b - a) % n + n) % n;
+    EXPECT_TRUE(step == 1 || step == 2)
+        << name << ": link (" << chain[k - 1].x() << ", " << chain[k - 1].y() << ") -> ("
+        << chain[k].x() << ", " << chain[k].y() << ") is not to the next cone along its boundary";
+  }
+}
+
 TEST(HardTracks, ABoundaryLeavingAMinimumHairpinKeepsToItsOwnLeg) {
   // generated hard trackdrive 7125: a 75 m start straight ends in a minimum hairpin whose exit
   // leg runs back 5.5 m beside the straight. Seen from the car at the hairpin's entry, the
@@ -180,40 +214,15 @@ TEST(HardTracks, ABoundaryLeavingAMinimumHairpinKeepsToItsOwnLeg) {
   // 1.07 m from the inner cones of the leg, and with the LiDAR the car hit two outer cones at the
   // entry (the full-lock manoeuvres scored a hit on that path at the exit and left the turn-in
   // late)
-  tracks::GeneratorParams g;
-  g.profile = tracks::GeneratorProfile::kHard;
-  const tracks::Track track = tracks::generate_circuit(7125, g);
+  const tracks::Track track = hard_trackdrive(7125);
   const core::Pose2 pose{70.5, 0.0, 0.0};
-  std::vector<core::MapCone> cones;
-  for (const tracks::Cone& c : track.cones)
-    if ((c.position - pose.position()).norm() <= 30.0) cones.push_back({c.id, c.cls, c.position});
+  const std::vector<core::MapCone> cones = cones_in_reach(track, pose);
   ASSERT_GT(cones.size(), 40u);
-
-  // each link of a chain joins cones next to each other along its boundary (or one apart, a
-  // missed cone)
-  const auto along_lane = [&](const std::vector<Vec2>& chain, const std::vector<int>& lane) {
-    auto index_of = [&](const Vec2& p) {
-      for (size_t i = 0; i < lane.size(); ++i)
-        if ((track.cones[static_cast<size_t>(lane[i])].position - p).norm() < 1e-9)
-          return static_cast<int>(i);
-      return -1;
-    };
-    for (size_t k = 1; k < chain.size(); ++k) {
-      const int a = index_of(chain[k - 1]), b = index_of(chain[k]);
-      EXPECT_GE(a, 0);
-      EXPECT_GE(b, 0);
-      const int n = static_cast<int>(lane.size());
-      const int step = ((b - a) % n + n) % n;
-      EXPECT_TRUE(step == 1 || step == 2)
-          << "link (" << chain[k - 1].x() << ", " << chain[k - 1].y() << ") -> (" << chain[k].x()
-          << ", " << chain[k].y() << ") skips " << step - 1 << " cones of its boundary";
-    }
-  };
   const Boundaries b = chain_boundaries(cones, pose, {}, 25.0, false);
   ASSERT_GE(b.left.size(), 10u);
   ASSERT_GE(b.right.size(), 10u);
-  along_lane(b.left, track.left_lane);
-  along_lane(b.right, track.right_lane);
+  expect_along_lane(track, b.left, track.left_lane, "7125 left");
+  expect_along_lane(track, b.right, track.right_lane, "7125 right");
 
   // the path keeps to the lanes' middle: 1.6 m from the cones in the straights, 1.43 m at the
   // closest (round the hairpin)
@@ -224,6 +233,27 @@ TEST(HardTracks, ABoundaryLeavingAMinimumHairpinKeepsToItsOwnLeg) {
     closest = std::min(closest, project_onto(path, c.position, 0, path.segment_count()).distance_m);
   std::printf("path to the nearest cone: %.3f m\n", closest);
   EXPECT_GT(closest, 1.3);
+}
+
+TEST(HardTracks, AChainStartedInsideATurnFollowsItsBoundary) {
+  // a chain starts at the cone beside the car; the car's heading lags the boundary's inside a
+  // turn. Hard trackdrive 7069 (LiDAR, lap 1), the car at the apex of a minimum hairpin: the
+  // blue chain took the inner cones' turn for a bend and linked 8.6 m on to the start's big
+  // orange cones; the path looped back on itself and the car unwound its lock mid-hairpin (three
+  // cones). Hard trackdrive 7131 (GraphSLAM, lap 1), in a bend beside a lane 2 m away: the blue
+  // chain linked 3.3 m across to that lane's cone instead of 4.0 m along its own (one cone). The
+  // boundary's direction and turn at its first cone now come from the cones before it
+  const std::vector<std::pair<uint64_t, core::Pose2>> cases = {{7069, {14.975, -8.751, 2.2819}},
+                                                               {7131, {-6.4, 61.0, -1.83}}};
+  for (const auto& [seed, pose] : cases) {
+    const tracks::Track track = hard_trackdrive(seed);
+    const Boundaries b = chain_boundaries(cones_in_reach(track, pose), pose, {}, 25.0, false);
+    const std::string name = "hard trackdrive " + std::to_string(seed);
+    ASSERT_GE(b.left.size(), 6u) << name;
+    ASSERT_GE(b.right.size(), 6u) << name;
+    expect_along_lane(track, b.left, track.left_lane, name + " left");
+    expect_along_lane(track, b.right, track.right_lane, name + " right");
+  }
 }
 
 }  // namespace
