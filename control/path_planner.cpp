@@ -190,8 +190,14 @@ std::vector<Vec2> chain_one(const std::vector<MapCone>& cones, ConeClass side_cl
     const Vec2 cur = chain.back();
     int next = -1;
     best = std::numeric_limits<double>::infinity();
+    // the first link may also go on straight: the cones before the first one can belong to
+    // another part of the track where the boundary starts (hard trackdrive 7109: the yellow
+    // cone behind the start's first was 4.6 m over in the lane below, a 1.2 rad turn that sent
+    // the chain off the start straight)
+    const bool guessed_turn = chain.size() == 1 && last_turn != 0.0;
     for (size_t i = 0; i < cones.size(); ++i) {
       costs[i] = link_cost(cur, dir, last_turn, i, false);
+      if (guessed_turn) costs[i] = std::min(costs[i], link_cost(cur, dir, 0.0, i, false));
       if (costs[i] < best) best = costs[i], next = static_cast<int>(i);
     }
     if (next >= 0 && std::abs(last_turn) >= kTurnGuessRad) {

@@ -256,5 +256,31 @@ TEST(HardTracks, AChainStartedInsideATurnFollowsItsBoundary) {
   }
 }
 
+TEST(HardTracks, AChainAtTheStartGoesOnStraightPastConesOfAnotherLane) {
+  // hard trackdrive 7109, 2.5 s after the start (ground truth): the yellow cone behind the
+  // start's first is not in view, but two of the lane 4.6 m below are; the chain's start took
+  // the turn through one of them (1.2 rad) for the boundary's and left the start straight for
+  // an orange cone and that lane; the path pulled the car over the straight's yellow cones (two
+  // hit). The cones are those a 20 m, 200 degree sensor saw from the start line on
+  const tracks::Track track = hard_trackdrive(7109);
+  const core::Pose2 pose{6.375, -0.169, -0.208};
+  ASSERT_NEAR(track.start.yaw, 0.0, 1e-9);  // the start line looks along +x
+  std::vector<core::MapCone> seen;
+  for (const tracks::Cone& c : track.cones) {
+    for (double x = track.start.x; x <= pose.x; x += 0.5) {
+      const Vec2 d = c.position - Vec2(x, track.start.y);
+      if (d.norm() <= 20.0 && std::abs(std::atan2(d.y(), d.x())) <= 100.0 * kPi / 180.0) {
+        seen.push_back({c.id, c.cls, c.position});
+        break;
+      }
+    }
+  }
+  const Boundaries b = chain_boundaries(seen, pose, {}, 25.0, false);
+  ASSERT_GE(b.left.size(), 4u);
+  ASSERT_GE(b.right.size(), 4u);
+  expect_along_lane(track, b.left, track.left_lane, "7109 left");
+  expect_along_lane(track, b.right, track.right_lane, "7109 right");
+}
+
 }  // namespace
 }  // namespace conesim::control
