@@ -161,14 +161,15 @@ std::vector<Vec2> chain_one(const std::vector<MapCone>& cones, ConeClass side_cl
     const double bend = turn - std::clamp(last_turn, -kMaxPredictedTurnRad, kMaxPredictedTurnRad);
     return d * (1.0 + params.turn_weight * bend * bend) + (continuation ? 0.0 : penalty);
   };
-  // while the chain is turning, a cone nearly as cheap a link as the cheapest is told apart from
-  // it by the link that could follow each: where a turn ends, the guess that it goes on favours a
-  // cone of the part of the track the turn led past, which the boundary cannot follow on from (hard
-  // trackdrive 7125 with the LiDAR, lap 1: at the exit of a minimum hairpin the yellow chain
-  // went 3.9 m to the start straight's cones instead of 2.0 m along its own leg, costs 3.9
-  // against 4.2; the path bent 0.5 m towards the inner cones and every full-lock manoeuvre scored
-  // a hit at the exit). The link after counts its shape and length only (an off-class cone's
-  // penalty is the link's own); a cone with no link after it counts its own link once more.
+  // while the chain is turning, a cone nearly as cheap a link as the cheapest, and turning less,
+  // is told apart from it by the link that could follow each: where a turn ends, the guess that it
+  // goes on favours a cone of the part of the track the turn led past, which the boundary cannot
+  // follow on from (hard trackdrive 7125 with the LiDAR, lap 1: at the exit of a minimum hairpin
+  // the yellow chain went 3.9 m to the start straight's cones instead of 2.0 m along its own leg,
+  // costs 3.9 against 4.2; the path bent 0.5 m towards the inner cones and every full-lock
+  // manoeuvre scored a hit at the exit). The link after counts its shape and length only (an
+  // off-class cone's penalty is the link's own); a cone with no link after it counts its own link
+  // once more.
   auto link_after = [&](const Vec2& cur, const Vec2& dir, size_t i) {
     if (static_cast<int>(i) == first) return 0.0;
     const Vec2 v = cones[i].position - cur;
@@ -202,9 +203,19 @@ std::vector<Vec2> chain_one(const std::vector<MapCone>& cones, ConeClass side_cl
     }
     if (next >= 0 && std::abs(last_turn) >= kTurnGuessRad) {
       const double close_enough = best * (1.0 + kAmbiguousLinkShare);
+      auto turn_to = [&](size_t i) {
+        const Vec2 v = cones[i].position - cur;
+        return std::abs(std::atan2(core::cross(dir, v), dir.dot(v)));
+      };
+      const double cheapest_turn = turn_to(static_cast<size_t>(next));
       double best_continued = std::numeric_limits<double>::infinity();
       for (size_t i = 0; i < cones.size(); ++i) {
-        if (costs[i] > close_enough) continue;
+        // only a link that turns less than the cheapest may take its place: the look-ahead
+        // checks the guess that the turn goes on, not a link that already turned less (EUFS
+        // small_track_2: the outer cone of a bend, where the boundary turns by 0.7 rad, lost to
+        // the smoother link past it, which ran 1.25 m from an inner cone; the other chain then
+        // dropped that cone and the car hit it)
+        if (costs[i] > close_enough || turn_to(i) > cheapest_turn + 1e-9) continue;
         const double continued = costs[i] + link_after(cur, dir, i);
         if (continued < best_continued) best_continued = continued, next = static_cast<int>(i);
       }

@@ -311,6 +311,37 @@ TEST(PathPlanner, StartGateKeepsBothBoundariesAndThePathClearOfItsCones) {
     EXPECT_GT(project_onto(path, gate_cone, 0, path.segment_count()).distance_m, 1.2);
 }
 
+TEST(PathPlanner, TheOuterConeOfABendStaysInItsChain) {
+  // EUFS small_track_2 (shared corpus), the cones a ground-truth sensor had seen 16.5 s in: the
+  // outer (yellow) boundary of a left bend turns by 0.7 rad at (-18.0, -1.3). A look-ahead that
+  // let a link turning more than the cheapest win took the smoother link past that cone; it ran
+  // 1.25 m from the inner cone at (-17.3, 1.5), which the blue chain then dropped as lying on the
+  // other boundary, and the path ran the car over it (one cone a lap)
+  const std::vector<MapCone> cones = {
+      cone(ConeClass::kBlue, {-16.57, 18.35}),   cone(ConeClass::kBlue, {-19.31, 15.66}),
+      cone(ConeClass::kYellow, {-22.07, 17.82}), cone(ConeClass::kBlue, {-21.00, 12.20}),
+      cone(ConeClass::kYellow, {-23.50, 13.56}), cone(ConeClass::kBlue, {-20.97, 8.24}),
+      cone(ConeClass::kYellow, {-23.50, 9.73}),  cone(ConeClass::kBlue, {-19.40, 5.65}),
+      cone(ConeClass::kYellow, {-23.90, 9.00}),  cone(ConeClass::kYellow, {-23.90, 7.15}),
+      cone(ConeClass::kYellow, {-23.26, 4.88}),  cone(ConeClass::kBlue, {-13.36, 2.00}),
+      cone(ConeClass::kBlue, {-17.30, 1.50}),    cone(ConeClass::kYellow, {-20.83, 2.23}),
+      cone(ConeClass::kBlue, {-9.54, 1.89}),     cone(ConeClass::kYellow, {-18.00, -1.30}),
+      cone(ConeClass::kYellow, {-14.20, -1.90}), cone(ConeClass::kYellow, {-9.86, -1.60})};
+  const Pose2 pose{-21.376, 5.877, -1.0508};
+  const Boundaries b = chain_boundaries(cones, pose, {}, 25.0, false);
+  const auto has = [](const std::vector<Vec2>& chain, const Vec2& p) {
+    return std::any_of(chain.begin(), chain.end(),
+                       [&](const Vec2& q) { return (q - p).norm() < 1e-6; });
+  };
+  EXPECT_TRUE(has(b.right, {-18.00, -1.30}));
+  EXPECT_TRUE(has(b.left, {-17.30, 1.50}));
+  // the path keeps the car's half width (0.7 m), a cone's radius (0.11 m) and the 0.2 m margin
+  // from that inner cone: 1.12 m, against 0.61 m with the link past the outer cone
+  const Path path = plan_local_path(cones, pose, {}, 20.0);
+  ASSERT_GE(path.points.size(), 3u);
+  EXPECT_GT(project_onto(path, {-17.30, 1.50}, 0, path.segment_count()).distance_m, 1.0);
+}
+
 TEST(PathPlanner, OpenBoundariesGiveNoCircuit) {
   EXPECT_FALSE(plan_circuit(corridor(-5.0, 100.0), Pose2{}, {}));
 }
