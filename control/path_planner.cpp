@@ -54,14 +54,13 @@ double class_penalty(ConeClass cls, ConeClass side_class, const PlannerParams& p
 // the direction a boundary runs at its first cone and the turn it made there, from the two
 // cones before it on the boundary (all three of the boundary's own colour, short links apart,
 // the nearer one beside the car and behind the first cone); without them the car's heading and
-// no turn. Inside a hairpin
-// the car's heading lags the boundary's: a chain started at the apex with the car's heading took
-// the inner cones' turn for a bend and linked 8.6 m on to the start's big orange cones (hard
-// trackdrive 7069, LiDAR, lap 1: the path looped back on itself and the car unwound
-// mid-hairpin), or 3.3 m across to the next lane's cone instead of 4.0 m along its own (hard
-// trackdrive 7131, GraphSLAM, lap 1). The turn matters at a hairpin's tip: with the direction
-// alone, the tip's next cone looked a 1.4 rad turn and the chain jumped 9.7 m to a cone of
-// another part of the track (hard trackdrive 7195)
+// no turn. Inside a turn the car's heading lags the boundary's: a chain started at a hairpin's
+// apex with the car's heading took the inner cones' turn for a bend and linked 8.6 m on to the
+// start's big orange cones (hard trackdrive 7069, LiDAR, lap 1: the path looped back on itself
+// and the car unwound mid-hairpin), or 3.3 m across to the next lane's cone instead of 4.0 m
+// along its own (hard trackdrive 7131, GraphSLAM, lap 1). The turn matters at a hairpin's tip:
+// with the direction alone, the tip's next cone looked a 1.4 rad turn and the chain jumped 9.7 m
+// to a cone of another part of the track (hard trackdrive 7195)
 struct ChainStart {
   Vec2 dir;
   double last_turn = 0.0;
