@@ -51,6 +51,11 @@ double class_penalty(ConeClass cls, ConeClass side_class, const PlannerParams& p
   return -1.0;
 }
 
+// the turn from direction a to direction b, radians (positive left)
+double turn_between(const Vec2& a, const Vec2& b) {
+  return std::atan2(core::cross(a, b), a.dot(b));
+}
+
 // the direction a boundary runs at its first cone and the turn it made there, from the two
 // cones before it on the boundary (all three of the boundary's own colour, short links apart,
 // the nearer one beside the car and behind the first cone); without them the car's heading and
@@ -90,7 +95,7 @@ ChainStart chain_start(const std::vector<MapCone>& cones, ConeClass side_class, 
       const Vec2 v = cones[at].position - cones[i].position;
       const double d = v.norm();
       if (d < kMinLinkM || d > kMaxBackLinkM) continue;
-      const double turn = std::atan2(core::cross(reference, v), reference.dot(v));
+      const double turn = turn_between(reference, v);
       if (std::abs(turn) > params.max_link_turn_rad) continue;
       const double cost = d * (1.0 + params.turn_weight * turn * turn);
       if (cost < best) best = cost, before = static_cast<int>(i);
@@ -100,7 +105,7 @@ ChainStart chain_start(const std::vector<MapCone>& cones, ConeClass side_class, 
     if (back == 0)
       start.dir = v;
     else
-      start.last_turn = std::atan2(core::cross(v, start.dir), v.dot(start.dir));
+      start.last_turn = turn_between(v, start.dir);
     reference = v;
     at = static_cast<size_t>(before);
   }
@@ -152,7 +157,7 @@ std::vector<Vec2> chain_one(const std::vector<MapCone>& cones, ConeClass side_cl
     const Vec2 v = cones[i].position - cur;
     const double d = v.norm();
     if (d < kMinLinkM || d > params.max_link_m) return kNone;
-    const double turn = std::atan2(core::cross(dir, v), dir.dot(v));
+    const double turn = turn_between(dir, v);
     const double max_turn = !whole_circuit && d <= params.short_link_m
                                 ? params.max_short_link_turn_rad
                                 : params.max_link_turn_rad;
@@ -172,7 +177,7 @@ std::vector<Vec2> chain_one(const std::vector<MapCone>& cones, ConeClass side_cl
   auto link_after = [&](const Vec2& cur, const Vec2& dir, size_t i) {
     if (static_cast<int>(i) == first) return 0.0;
     const Vec2 v = cones[i].position - cur;
-    const double turn = std::atan2(core::cross(dir, v), dir.dot(v));
+    const double turn = turn_between(dir, v);
     const bool was_used = used[i];
     used[i] = true;
     double after = std::numeric_limits<double>::infinity();
@@ -204,7 +209,7 @@ std::vector<Vec2> chain_one(const std::vector<MapCone>& cones, ConeClass side_cl
       const double close_enough = best * (1.0 + kAmbiguousLinkShare);
       auto turn_to = [&](size_t i) {
         const Vec2 v = cones[i].position - cur;
-        return std::abs(std::atan2(core::cross(dir, v), dir.dot(v)));
+        return std::abs(turn_between(dir, v));
       };
       const double cheapest_turn = turn_to(static_cast<size_t>(next));
       double best_continued = std::numeric_limits<double>::infinity();
@@ -229,7 +234,7 @@ std::vector<Vec2> chain_one(const std::vector<MapCone>& cones, ConeClass side_cl
     chain.push_back(cones[static_cast<size_t>(next)].position);
     ids.push_back(next);
     length += v.norm();
-    last_turn = std::atan2(core::cross(dir, v), dir.dot(v));
+    last_turn = turn_between(dir, v);
     dir = v.normalized();
   }
   return chain;

@@ -279,6 +279,12 @@ TEST(PathPlanner, AConeOfTheWrongColourForItsSideBecomesAnObstacleOnly) {
 // to the start's next big orange cone (a 0.7 rad turn cost less than the orange cone's penalty);
 // the conflict of that boundary with the left one then dropped the left's cones past the gate,
 // and the path, offset from the right boundary alone, passed 0.4 m from a start cone
+// whether a chain holds the cone at p
+bool has(const std::vector<Vec2>& chain, const Vec2& p) {
+  return std::any_of(chain.begin(), chain.end(),
+                     [&](const Vec2& q) { return (q - p).norm() < 1e-6; });
+}
+
 TEST(PathPlanner, StartGateKeepsBothBoundariesAndThePathClearOfItsCones) {
   const std::vector<MapCone> cones = {
       cone(ConeClass::kBlue, {-1.23, 3.36}),      cone(ConeClass::kBlue, {2.04, 3.07}),
@@ -294,10 +300,6 @@ TEST(PathPlanner, StartGateKeepsBothBoundariesAndThePathClearOfItsCones) {
       cone(ConeClass::kYellow, {-4.57, -2.51}),   cone(ConeClass::kBlue, {19.22, -6.62})};
   const Pose2 pose{3.10, 0.39, -0.158};
   const Boundaries b = chain_boundaries(cones, pose, {}, 30.0, false);
-  const auto has = [](const std::vector<Vec2>& chain, const Vec2& p) {
-    return std::any_of(chain.begin(), chain.end(),
-                       [&](const Vec2& q) { return (q - p).norm() < 1e-6; });
-  };
   EXPECT_TRUE(has(b.right, {3.70, -3.00}));
   EXPECT_TRUE(has(b.left, {6.97, 2.03}));
   EXPECT_TRUE(has(b.left, {10.06, 1.04}));
@@ -329,10 +331,6 @@ TEST(PathPlanner, TheOuterConeOfABendStaysInItsChain) {
       cone(ConeClass::kYellow, {-14.20, -1.90}), cone(ConeClass::kYellow, {-9.86, -1.60})};
   const Pose2 pose{-21.376, 5.877, -1.0508};
   const Boundaries b = chain_boundaries(cones, pose, {}, 25.0, false);
-  const auto has = [](const std::vector<Vec2>& chain, const Vec2& p) {
-    return std::any_of(chain.begin(), chain.end(),
-                       [&](const Vec2& q) { return (q - p).norm() < 1e-6; });
-  };
   EXPECT_TRUE(has(b.right, {-18.00, -1.30}));
   EXPECT_TRUE(has(b.left, {-17.30, 1.50}));
   // the path keeps the car's half width (0.7 m), a cone's radius (0.11 m) and the 0.2 m margin
