@@ -31,6 +31,9 @@ constexpr double kTurnGuessRad = 0.1;
 constexpr double kMaxBackLinkM = 5.5;
 // a closed chain needs this many cones before it may return to its first one
 constexpr size_t kMinClosedChainCones = 8;
+// a link never passes a cone of its own boundary this close to it on the track's side, metres
+// (less than the narrowest lane, 3 m, so that the other boundary's cones are never that close)
+constexpr double kMaxPassedInsideM = 2.4;
 // a walk may run straight before the first cone of a boundary for this long, metres
 constexpr double kMaxWalkBeforeChainsM = 12.0;
 // chains are rebuilt at most this many times after dropping cones that sit on the other side
@@ -223,6 +226,29 @@ std::vector<Vec2> chain_one(const std::vector<MapCone>& cones, ConeClass side_cl
         const double continued = costs[i] + link_after(cur, dir, i);
         if (continued < best_continued) best_continued = continued, next = static_cast<int>(i);
       }
+    }
+    // a boundary runs along its innermost cones: a link that would pass one of the chain's own
+    // colour on the track's side, nearer than the link's end, goes to that cone instead (hard
+    // autocross 7108, ground truth: leaving a right-hand bend, the guess that the bend goes on
+    // sent the yellow chain 4.3 m across to the start straight's yellow cones, 2 m beyond its
+    // own, instead of 3.8 m along its own boundary, which bent left there, costs 4.4 against
+    // 6.0; the path then ran 1 m towards the straight, and the car hit two of its own cones)
+    if (next >= 0 && next != first) {
+      const Vec2 v = cones[static_cast<size_t>(next)].position - cur;
+      const double d = v.norm();
+      int inner = -1;
+      for (size_t i = 0; i < cones.size(); ++i) {
+        if (static_cast<int>(i) == next || cones[i].cls != side_class || !std::isfinite(costs[i]))
+          continue;
+        const Vec2 a = cones[i].position - cur;
+        const double along = a.dot(v) / d;
+        const double inside = -side * core::cross(v, a) / d;
+        if (along <= 0.0 || along >= d || inside <= 0.0 || inside > kMaxPassedInsideM ||
+            a.norm() >= d)
+          continue;
+        if (inner < 0 || costs[i] < costs[static_cast<size_t>(inner)]) inner = static_cast<int>(i);
+      }
+      if (inner >= 0) next = inner;
     }
     if (next < 0) break;
     if (next == first) {

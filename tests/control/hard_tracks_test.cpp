@@ -282,5 +282,23 @@ TEST(HardTracks, AChainAtTheStartGoesOnStraightPastConesOfAnotherLane) {
   expect_along_lane(track, b.right, track.right_lane, "7109 right");
 }
 
+TEST(HardTracks, AChainNeverPassesOneOfItsOwnConesOnTheTrackSide) {
+  // hard autocross 7108 (ground truth), 14.5 s in: the lane runs west 2 m below the start
+  // straight, whose yellow cones face its own. Leaving a right-hand bend, the guess that the bend
+  // went on sent the yellow chain 4.3 m across to the straight's yellow cones instead of 3.8 m
+  // along its own boundary, which bends left there; it passed its own next cone 1.9 m on the
+  // track's side, the path ran 1 m towards the straight, and the car hit two of its own cones
+  tracks::GeneratorParams g;
+  g.profile = tracks::GeneratorProfile::kHard;
+  g.event = core::EventType::kAutocross;
+  const tracks::Track track = tracks::generate_circuit(7108, g);
+  const core::Pose2 pose{53.364, -7.669, 2.810};
+  const Boundaries b = chain_boundaries(cones_in_reach(track, pose), pose, {}, 25.0, false);
+  ASSERT_GE(b.left.size(), 6u);
+  ASSERT_GE(b.right.size(), 6u);
+  expect_along_lane(track, b.left, track.left_lane, "7108 left");
+  expect_along_lane(track, b.right, track.right_lane, "7108 right");
+}
+
 }  // namespace
 }  // namespace conesim::control
