@@ -64,11 +64,12 @@ Boundaries chain_boundaries(const std::vector<core::MapCone>& cones, const core:
 /// The boundaries of a whole circuit ordered along a closed reference line round it (the car's
 /// own lap, say), in the order of each cone's nearest point along the line: blue cones within
 /// max_side_distance_m of it to the left, yellow ones to the right, orange ones to the side they
-/// lie on; a blue or yellow cone more than 0.75 m on the wrong side of the line (a wrong colour)
-/// is left out. Where a whole circuit's chains cannot follow a turn (the inner cones of a minimum
-/// hairpin turn by more than its links may) the line the car drove still orders the cones.
-/// A side is closed when it has cones all round: no stretch of the line longer than
-/// 2 max_link_m without one.
+/// lie on; a blue or yellow cone of a wrong colour for its place is left out: more than 0.75 m
+/// on the wrong side of the line, or nearer, across the lane, to the cones of the other colour
+/// within 6 m along the line than to those of its own. Where a whole circuit's chains cannot follow
+/// a turn (the inner cones of a minimum hairpin turn by more than its links may) the line the car
+/// drove still orders the cones. A side is closed when it has cones all round: no stretch of the
+/// line longer than 2 max_link_m without one.
 Boundaries boundaries_along(const Path& reference, const std::vector<core::MapCone>& cones,
                             const PlannerParams& params);
 
@@ -78,9 +79,10 @@ Boundaries boundaries_along(const Path& reference, const std::vector<core::MapCo
 /// cones of the side's colour (id -1), so that a footprint check keeps clear of them too.
 Boundaries with_gaps_filled(const Boundaries& boundaries, std::vector<core::MapCone>& cones);
 
-/// The cones with those of a wrong colour for their side of a closed reference line (a blue cone
-/// more than 0.75 m right of it, a yellow one left, within max_side_distance_m) made unknown: still
-/// obstacles, no longer a side the line must keep.
+/// The cones with those of a wrong colour for their place beside a closed reference line (within
+/// max_side_distance_m of it, a blue cone more than 0.75 m right of it or a yellow one left, or
+/// nearer across the lane to the other colour's cones beside it than to its own's, as in
+/// boundaries_along) made unknown: still obstacles, no longer a side the line must keep.
 std::vector<core::MapCone> with_sides_kept(const Path& reference, std::vector<core::MapCone> cones,
                                            const PlannerParams& params);
 

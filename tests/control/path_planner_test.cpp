@@ -4,8 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <numbers>
 
+#include "control/racing_line.hpp"
 #include "test_tracks.hpp"
 #include "tracks/generator.hpp"
 
@@ -272,6 +275,46 @@ TEST(PathPlanner, AConeOfTheWrongColourForItsSideBecomesAnObstacleOnly) {
   for (size_t i = 0; i + 2 < map.size(); ++i) EXPECT_EQ(kept[i].cls, map[i].cls) << "cone " << i;
   EXPECT_EQ(kept[map.size() - 2].cls, ConeClass::kUnknown);
   EXPECT_EQ(kept.back().cls, ConeClass::kBlue);
+}
+
+TEST(PathPlanner, AConeSeenInTheWrongColourAcrossTheLaneIsNoSideForTheRacingLine) {
+  // one yellow cone of the first straight mapped as blue, and lap 1's line 0.9 m towards the
+  // yellow cones there, so that the cone is 0.6 m right of it: less than the 0.75 m that marks a
+  // wrong side. Its place across the lane (among the yellow cones) marks it; kept as a blue cone
+  // the racing line would have to pass it on its right, through the yellow cones
+  const tracks::Track track = minimum_hairpins();
+  std::vector<MapCone> map = map_of(track);
+  size_t flipped = map.size();
+  for (size_t i = 0; i < map.size(); ++i)
+    if (map[i].cls == ConeClass::kYellow && std::abs(map[i].position.x() - 20.0) < 1.1 &&
+        map[i].position.y() < 0.0)
+      flipped = i;
+  ASSERT_LT(flipped, map.size());
+  map[flipped].cls = ConeClass::kBlue;
+  std::vector<Vec2> lap = track.centre_line;
+  for (Vec2& p : lap) p.y() -= 0.9;
+  const Path reference{lap, true};
+
+  const std::vector<MapCone> kept = with_sides_kept(reference, map, {});
+  for (size_t i = 0; i < map.size(); ++i)
+    EXPECT_EQ(kept[i].cls, i == flipped ? ConeClass::kUnknown : map[i].cls) << "cone " << i;
+  const Boundaries b = boundaries_along(reference, map, {});
+  ASSERT_TRUE(b.left_closed && b.right_closed);
+  EXPECT_EQ(b.left.size(), track.left_lane.size());
+  EXPECT_EQ(b.right.size(), track.right_lane.size() - 1);
+
+  // the racing line keeps the footprint clear of every cone, the flipped one too
+  const RacingLine line = plan_racing_line(lap, true, b.left, b.right, kept, Footprint{});
+  ASSERT_GE(line.path.points.size(), 20u);
+  double clearance = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < line.path.points.size(); ++i) {
+    const Vec2 p = line.path.points[i];
+    const Vec2 t = line.path.segment_end(i % line.path.segment_count()) - p;
+    clearance = std::min(
+        clearance, footprint_clearance({p.x(), p.y(), std::atan2(t.y(), t.x())}, map, Footprint{}));
+  }
+  std::printf("footprint clearance %.3f m\n", clearance);
+  EXPECT_GT(clearance, 0.1);
 }
 
 // EUFS Jellybean's start, as the car sees it a metre past the go line, heading a little right.
