@@ -134,7 +134,7 @@ std::vector<Vec2> resample(const std::vector<Vec2>& points, double spacing_m, bo
   return out;
 }
 
-std::vector<Vec2> closed_lap(std::vector<Vec2> trace, double reach_m) {
+std::vector<Vec2> closed_lap(std::vector<Vec2> trace, double reach_m, double lateral_m) {
   if (trace.size() < 3) return trace;
   const Vec2 first = trace.front();
   // the heading over the trace's first metre (its points may be closer than that)
@@ -142,9 +142,13 @@ std::vector<Vec2> closed_lap(std::vector<Vec2> trace, double reach_m) {
   for (size_t i = 1; i < trace.size() && heading.norm() < 1.0; ++i) heading = trace[i] - first;
   if (heading.norm() < 1e-9) return trace;
   heading.normalize();
-  while (trace.size() > 3 && (trace.back() - first).norm() < reach_m &&
-         (trace.back() - first).dot(heading) >= 0.0)
+  const Vec2 left(-heading.y(), heading.x());
+  while (trace.size() > 3) {
+    const Vec2 d = trace.back() - first;
+    const double along = d.dot(heading);
+    if (along < 0.0 || along > reach_m || std::abs(d.dot(left)) > lateral_m) break;
     trace.pop_back();
+  }
   return trace;
 }
 

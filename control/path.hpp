@@ -56,11 +56,14 @@ PathProjection project_onto(const Path& path, const Vec2& p, size_t first, size_
 Path join_from(const Path& path, const Vec2& from, const PathProjection& at, double length_m,
                std::optional<double> heading = std::nullopt);
 
-/// A driven lap's trace as a closed loop: the points at its end that have come back within
-/// `reach_m` of its first point and are not behind it (along the trace's heading over its first
-/// metre) are dropped. A lap is counted as the car crosses the line, so its trace runs on past
-/// where it began; closed as it is, the loop would double back on itself there.
-std::vector<Vec2> closed_lap(std::vector<Vec2> trace, double reach_m = 5.0);
+/// A driven lap's trace as a closed loop: the points at its end that have come back to its first
+/// point and run on past it (up to `reach_m` ahead of it along the trace's heading over its first
+/// metre, within `lateral_m` to either side) are dropped. A lap is counted as the car crosses the
+/// line, so its trace runs on past where it began, and further when the line has moved on to the
+/// time-keeping cones since the trace began (6 m on generated tracks); closed as it is, the loop
+/// would double back on itself there.
+std::vector<Vec2> closed_lap(std::vector<Vec2> trace, double reach_m = 15.0,
+                             double lateral_m = 2.0);
 
 /// The polyline resampled every spacing_m (the last step of an open path may be shorter).
 std::vector<Vec2> resample(const std::vector<Vec2>& points, double spacing_m, bool closed);

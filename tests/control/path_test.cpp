@@ -151,6 +151,17 @@ TEST(ClosedLap, DropsTheTraceRunOnPastTheStart) {
   EXPECT_LT(largest_turn(resample(lap, 1.0, true)), 0.06);
 }
 
+TEST(ClosedLap, DropsARunOnPastAStartLineThatMovedOn) {
+  // the lap line moves from the start pose to the time-keeping cones once they are mapped, 6 m
+  // on (generated hard trackdrive 7015 with GraphSLAM: the trace ran 5.25 m past its first point,
+  // beyond the 5 m once dropped; the loop doubled back, the racing line took a 0.85 m S-bend
+  // over 4 m at the start, and a fast lap hit a cone there)
+  for (const double past : {5.3, 6.5, 9.0}) {
+    const std::vector<Vec2> lap = closed_lap(circle_trace(past));
+    EXPECT_LT(largest_turn(resample(lap, 1.0, true)), 0.06) << past << " m past";
+  }
+}
+
 TEST(ClosedLap, KeepsATraceThatEndsBehindItsStart) {
   const std::vector<Vec2> trace = circle_trace(-0.7);
   EXPECT_EQ(closed_lap(trace).size(), trace.size());
