@@ -33,10 +33,8 @@ constexpr double kConeReachExtraM = 2.0;
 // turned that way by this share of full lock
 constexpr double kOtherSideSteerShare = 0.3;
 // steering past this share of full lock towards a side is a turn under way: no candidate
-// straightens it before turning that way; nor when the steering is past the second share and
-// the tracker asks for the first
+// straightens it before turning that way
 constexpr double kCommittedSteerShare = 0.5;
-constexpr double kTurningSteerShare = 0.3;
 // cones further than this from the rear axle cannot touch the footprint, metres
 constexpr double kFootprintReachM = 4.0;
 
@@ -239,16 +237,9 @@ ManoeuvreChoice choose_manoeuvre(const ManoeuvreParams& p, const Pose2& pose, do
         // once the steering is well into a turn, holding it straight first would unwind it
         // mid-turn: re-chosen tick after tick (a wait always looks as good as turning now to a
         // model that turns a little tighter than the car), the steering flipped between lock
-        // and straight and the car turned in late (generated hard trackdrive 7177, lap 1). The
-        // same while the steering unwinds a little before a hairpin and the tracker already asks
-        // for more (hard autocross 7074 with GraphSLAM: steering 0.29 rad into the turn, 0.45
-        // asked; a straight wait won for two ticks, unwound the steering to 0.04 rad, and the
-        // car, at full lock 0.1 s late, ran wide into an outer cone)
-        const double committed = kCommittedSteerShare * p.max_steer_rad;
+        // and straight and the car turned in late (generated hard trackdrive 7177, lap 1)
         if (straight && side == steer_side &&
-            (std::abs(steer_now_rad) >= committed ||
-             (std::abs(steer_now_rad) >= kTurningSteerShare * p.max_steer_rad &&
-              side * nominal_steer_rad >= committed)))
+            std::abs(steer_now_rad) >= kCommittedSteerShare * p.max_steer_rad)
           continue;
         // a lock at full lock promised after following the path is not put off: re-chosen
         // tick after tick with the same wait, the lock never came while the tracker turned in

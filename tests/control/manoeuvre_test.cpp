@@ -179,26 +179,5 @@ TEST(Manoeuvre, ALockPromisedAfterFollowingThePathIsNotPutOff) {
   }
 }
 
-TEST(Manoeuvre, AHairpinTurnInUnderWayIsNotUnwoundToGoStraight) {
-  // the steering a little into the turn (0.29 rad, under half of full lock) and the tracker
-  // asking for more (0.45 rad): holding straight first would unwind it. Hard autocross 7074
-  // with GraphSLAM: a straight wait won there for two ticks, the steering fell to 0.04 rad, the
-  // car came to full lock 0.1 s late and ran wide into an outer cone
-  const Hairpin h = hairpin_with_exit_lane();
-  int straight_waits = 0;
-  for (const double x0 : {16.5, 17.0, 17.5, 18.0, 18.5}) {
-    const Pose2 pose{x0, 0.0, 0.05};
-    const PathProjection here = project_onto(h.path, pose.position(), 0, h.path.segment_count());
-    const ManoeuvreChoice c =
-        choose_manoeuvre(params(), pose, 3.2, 0.29, h.path, here, kHoldSpeed, h.cones, 0.45);
-    std::printf("x0 %.1f: wait %.2f s (%s), side %+.0f, hold %.2f s, steer %.3f: %.3f m\n", x0,
-                c.manoeuvre.wait_s, c.manoeuvre.straight ? "straight" : "on the path",
-                c.manoeuvre.side, c.manoeuvre.hold_s, c.steer_rad, c.clearance_m);
-    if (c.manoeuvre.straight) ++straight_waits;
-    EXPECT_GT(c.steer_rad, 0.2) << "x0 " << x0;
-  }
-  EXPECT_EQ(straight_waits, 0);
-}
-
 }  // namespace
 }  // namespace conesim::control
