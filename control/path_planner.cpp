@@ -34,6 +34,10 @@ constexpr size_t kMinClosedChainCones = 8;
 // a link never passes a cone of its own boundary this close to it on the track's side, metres
 // (less than the narrowest lane, 3 m, so that the other boundary's cones are never that close)
 constexpr double kMaxPassedInsideM = 2.4;
+// ... when it lies at least this share of the link's length along it and this far from the
+// link's end, metres
+constexpr double kMinPassedAlongShare = 0.5;
+constexpr double kMinPassedGapM = 1.0;
 // a walk may run straight before the first cone of a boundary for this long, metres
 constexpr double kMaxWalkBeforeChainsM = 12.0;
 // chains are rebuilt at most this many times after dropping cones that sit on the other side
@@ -243,8 +247,13 @@ std::vector<Vec2> chain_one(const std::vector<MapCone>& cones, ConeClass side_cl
         const Vec2 a = cones[i].position - cur;
         const double along = a.dot(v) / d;
         const double inside = -side * core::cross(v, a) / d;
-        if (along <= 0.0 || along >= d || inside <= 0.0 || inside > kMaxPassedInsideM ||
-            a.norm() >= d)
+        // the cone passed is another cone of the boundary, not a second copy of the link's ends
+        // (a SLAM that maps a cone twice, 0.5-0.9 m apart, put copies beside both): well along
+        // the link, not a sharp turn back, and apart from the link's end
+        if (along < kMinPassedAlongShare * d || along >= d || inside <= 0.0 ||
+            inside > kMaxPassedInsideM || a.norm() >= d ||
+            std::abs(turn_between(dir, a)) > params.max_link_turn_rad ||
+            (cones[i].position - cones[static_cast<size_t>(next)].position).norm() < kMinPassedGapM)
           continue;
         if (inner < 0 || costs[i] < costs[static_cast<size_t>(inner)]) inner = static_cast<int>(i);
       }

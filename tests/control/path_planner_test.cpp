@@ -317,6 +317,41 @@ TEST(PathPlanner, AConeSeenInTheWrongColourAcrossTheLaneIsNoSideForTheRacingLine
   EXPECT_GT(clearance, 0.1);
 }
 
+TEST(PathPlanner, AConeMappedTwiceDoesNotCutTheChainShort) {
+  // the Python example SLAM (examples/python_slam.py) maps some cones twice, 0.5-0.9 m apart:
+  // the cones near the car 27 s into its autocross. A copy of a link's end on the track's side
+  // is no cone the link passes (see chain_one): taken for one, the blue chain went on 8.2 m past
+  // the next cone, and the car left the track
+  const ConeClass B = ConeClass::kBlue, Y = ConeClass::kYellow, U = ConeClass::kUnknown;
+  struct Seen {
+    ConeClass cls;
+    double x, y;
+  };
+  const std::vector<Seen> seen = {
+      {Y, 9.53, -55.80},   {B, 11.39, -62.24},  {Y, 8.09, -59.80},   {Y, 7.35, -64.00},
+      {B, 11.21, -66.56},  {Y, 7.29, -68.41},   {B, 11.44, -71.06},  {Y, 7.44, -72.87},
+      {B, 11.60, -75.49},  {Y, 7.63, -77.37},   {B, 11.90, -79.94},  {Y, 7.96, -81.84},
+      {B, 12.28, -84.39},  {Y, 8.18, -85.91},   {B, 12.12, -87.43},  {Y, 6.92, -88.48},
+      {Y, -3.46, -81.82},  {B, 10.97, -90.11},  {Y, 4.24, -89.60},   {Y, -1.06, -85.59},
+      {B, 8.92, -92.19},   {Y, 1.41, -88.70},   {B, 6.26, -93.41},   {B, 3.33, -93.73},
+      {B, 0.49, -92.94},   {B, -1.91, -91.23},  {B, -4.24, -88.01},  {Y, -4.03, -82.26},
+      {B, -7.13, -84.68},  {B, -6.78, -84.17},  {Y, -6.26, -78.51},  {B, -9.52, -80.75},
+      {B, -12.59, -78.67}, {U, 6.66, -76.69},   {Y, -8.98, -76.17},  {B, -12.10, -78.11},
+      {Y, -8.42, -75.73},  {B, -15.81, -77.17}, {Y, -11.40, -73.80}, {U, -19.47, -76.93},
+      {U, -14.63, -72.57}, {U, -19.96, -78.12}, {Y, -12.06, -74.34}, {Y, -15.61, -73.46},
+      {Y, -19.29, -73.75}, {B, -16.14, -77.64}, {U, -24.26, -78.64}};
+  std::vector<MapCone> cones;
+  for (const Seen& s : seen) cones.push_back(cone(s.cls, {s.x, s.y}));
+  const Pose2 pose{-9.449, -78.781, 2.142};
+  const Boundaries b = chain_boundaries(cones, pose, {}, 30.0, false);
+  ASSERT_GE(b.left.size(), 5u);
+  // cones stand at most 5 m apart along a boundary
+  for (size_t i = 0; i + 1 < b.left.size(); ++i)
+    EXPECT_LT((b.left[i + 1] - b.left[i]).norm(), 5.0) << "left link " << i;
+  for (size_t i = 0; i + 1 < b.right.size(); ++i)
+    EXPECT_LT((b.right[i + 1] - b.right[i]).norm(), 5.0) << "right link " << i;
+}
+
 // EUFS Jellybean's start, as the car sees it a metre past the go line, heading a little right.
 // The right boundary's first link used to go to a yellow cone of the lane beyond rather than on
 // to the start's next big orange cone (a 0.7 rad turn cost less than the orange cone's penalty);
