@@ -43,14 +43,27 @@ struct ManoeuvreParams {
   std::vector<double> wait_s = {0.0, 0.1, 0.2, 0.35, 0.5};
   /// ... and hold full lock this long, s.
   std::vector<double> hold_s = {0.5, 1.0, 1.5, 2.0, 2.5, 3.0};
-  /// Lag of the car's turning behind the steering command (servo, tyres: about 0.05 s for the
-  /// default car, tests/sim/vehicle_sim_test.cpp), s.
-  double steer_lag_s = 0.05;
+  /// Lag of the car's turning behind the steering (servo, tyres), first order, s: the default
+  /// car's, fitted to the MuJoCo car's path (tests/sim/vehicle_sim_test.cpp: a steering step at
+  /// 8-16 m/s, and turn-ins to full lock at 3-4 m/s).
+  double steer_lag_s = 0.04;
   /// The car's braking and speeding-up limits at low speed, m/s^2.
   double max_decel_mps2 = 8.0;
   double max_accel_mps2 = 5.0;
   /// Clearance beyond this counts no more, metres.
   double enough_clearance_m = 0.35;
+};
+
+/// The car as the roll-outs model it: a kinematic bicycle (rear axle pose) whose steering moves
+/// towards the command at its rate, whose turning follows the steering with a first-order lag,
+/// and whose yaw rate is scaled by the yaw gain.
+struct RolloutCar {
+  core::Pose2 pose;
+  /// The steering's angle, and the angle the car turns with (lagging it), radians.
+  double steer = 0.0;
+  double wheels = 0.0;
+  /// Moves the car on for `dt_s` at `speed_mps` with the steering command held at `command`.
+  void step(const ManoeuvreParams& params, double command, double speed_mps, double dt_s);
 };
 
 /// A manoeuvre: follow the path (or steer straight) for `wait_s`, then full lock towards

@@ -67,8 +67,8 @@ TEST(HardTracks, FsgMinimumHairpins) {
   // 9.0 and 9.2 m outside diameter with 3 m lanes (FSG's minimum, the generator's minimum
   // hairpins): the rear axle turns on 2.9-3.1 m at full lock, concentric with the hairpin, where
   // the outer front corner passes the outer cones with 0.16 m at best; the driver turns in at
-  // full lock when its roll-outs say so (control/manoeuvre.hpp). Measured: 0.15 m (9.0 m) and
-  // 0.11 m (9.2 m, on the exploration lap, whose exit cones come into view late)
+  // full lock when its roll-outs say so (control/manoeuvre.hpp). Measured: 0.16 m (9.0 m) and
+  // 0.15 m (9.2 m); 0.15 and 0.11 m while the roll-outs turned in a step before the car
   for (const double radius : {3.0, 3.1}) {
     CentreLine c;
     c.straight(40).arc(radius, kPi).straight(40).arc(radius, kPi);

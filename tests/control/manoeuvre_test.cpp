@@ -134,11 +134,11 @@ TEST(Manoeuvre, LeavesTheSteeringToTheTrackerWhenNothingKeepsClear) {
 TEST(Manoeuvre, AManoeuvreUnderWayKeepsItsTurnInWithAnotherHold) {
   // the hairpin of the turn-in test with its exit lane coned too. Under way: hold straight
   // 0.45 s more, then full lock for 3 s, which turns the car past the exit lane. The grid's
-  // fresh candidates turn in on the path at once (0.188 m: the early turn-in that hit the apex
-  // of hard trackdrive 7159 with GraphSLAM) or straight too early or too late; the turn-in
-  // under way with a shorter hold keeps clearer, and the car goes on straight
+  // fresh candidates turn in after following the path (0.194 m: the early turn-in that hit the
+  // apex of hard trackdrive 7159 with GraphSLAM) or straight too early or too late; the turn-in
+  // under way with a shorter hold keeps clearer (0.244 m), and the car goes on straight
   const Hairpin h = hairpin_with_exit_lane();
-  const Pose2 pose{17.5, 0.0, 0.0};
+  const Pose2 pose{17.25, 0.0, 0.0};
   const PathProjection here = project_onto(h.path, pose.position(), 0, h.path.segment_count());
   const ManoeuvreChoice fresh =
       choose_manoeuvre(params(), pose, 4.0, 0.0, h.path, here, kHoldSpeed, h.cones, 0.05);
