@@ -223,12 +223,8 @@ TEST(VehicleSim, TheRolloutModelStepsATurnInAsTheCarDrivesIt) {
   }
   // each of the car's places against the model's path (between its steps: straight)
   double worst = 0.0;
-  for (const core::Vec2& q : driven) {
-    double nearest = (q - modelled.front()).norm();
-    for (size_t i = 0; i + 1 < modelled.size(); ++i)
-      nearest = std::min(nearest, core::distance_to_segment(q, modelled[i], modelled[i + 1]));
-    worst = std::max(worst, nearest);
-  }
+  for (const core::Vec2& q : driven)
+    worst = std::max(worst, control::testing::distance_to_polyline(q, modelled, false));
   std::printf(
       "unwind, then full lock at 3.2 m/s: the car off the roll-out model's path by %.3f m\n",
       worst);
